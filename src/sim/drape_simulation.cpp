@@ -1,0 +1,350 @@
+#include "textile_handling/sim/drape_simulation.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace textile_handling {
+
+std::string toString(StepPolicy p) {
+  switch (p) {
+    case StepPolicy::kFixed: return "fixed";
+    case StepPolicy::kThesis: return "thesis";
+    case StepPolicy::kErrorControlled: return "error";
+  }
+  return "unknown";
+}
+
+StepPolicy stepPolicyFromString(const std::string& s) {
+  if (s == "fixed") return StepPolicy::kFixed;
+  if (s == "thesis") return StepPolicy::kThesis;
+  if (s == "error") return StepPolicy::kErrorControlled;
+  throw std::invalid_argument("unknown time-step policy '" + s + "' (expected fixed, thesis or error)");
+}
+
+DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, SimulationSettings settings, VecX x0,
+                                 VecX v0)
+    : model_(model),
+      pins_(std::move(pins)),
+      settings_(settings),
+      integrator_(makeIntegrator(settings.integrator, settings.solver)),
+      x_(std::move(x0)),
+      v_(std::move(v0)),
+      dt_(settings.dt) {
+  if (x_.size() != model.numDofs() || v_.size() != model.numDofs())
+    throw std::invalid_argument("DrapeSimulation: state size does not match the model");
+  if (!(settings.dt > 0) || !std::isfinite(settings.dt) || !(settings.dt_min > 0) ||
+      !(settings.dt_max >= settings.dt_min) || !(settings.max_time >= 0) || !(settings.error_tolerance > 0))
+    throw std::invalid_argument("DrapeSimulation: time-step settings must be finite and positive");
+  if (pins_.anchors.size() != pins_.nodes.size() || pins_.waypoint_times.size() != pins_.waypoint_offsets.size())
+    throw std::invalid_argument("DrapeSimulation: pinned node lists have different lengths");
+  for (Index p : pins_.nodes)
+    if (p < 0 || p >= model.numNodes()) throw std::invalid_argument("DrapeSimulation: pinned node out of range");
+  const int b = model.dofsPerNode();
+  for (Index i = 0; i < model.numNodes(); ++i) total_mass_ += model.massPerDof()[i * b];
+}
+
+Real DrapeSimulation::kineticEnergy() const {
+  return 0.5 * (model_.massPerDof().array() * v_.array().square()).sum();
+}
+
+bool DrapeSimulation::checkDivergence(const VecX& x, const VecX& v, std::string* why) const {
+  if (!x.allFinite() || !v.allFinite()) {
+    *why = "non-finite positions or velocities";
+    return true;
+  }
+  const Real stretch = model_.maxEdgeStretch(x);
+  if (!(stretch <= settings_.max_edge_stretch)) {
+    std::ostringstream s;
+    s << "edge stretched to " << stretch << " times its rest length (bound " << settings_.max_edge_stretch << ")";
+    *why = s.str();
+    return true;
+  }
+  const Real ke = 0.5 * (model_.massPerDof().array() * v.array().square()).sum();
+  const Real rms = std::sqrt(2 * ke / std::max(total_mass_, 1e-300));
+  if (!(rms <= settings_.max_speed)) {
+    std::ostringstream s;
+    s << "kinetic energy blow-up: RMS speed " << rms << " m/s (bound " << settings_.max_speed << ")";
+    *why = s.str();
+    return true;
+  }
+  return false;
+}
+
+void DrapeSimulation::adaptThesis(const VecX& x_old, Real h) {
+  // Thesis rule (section 4.5) on N = sum of distances moved / h, i.e. normalised by the step so
+  // that shrinking dt alone does not look like calming down. Decisions for its open points: the
+  // reference growth is the previous step's growth; "divide by this factor" uses the measured
+  // ratio; the increase needs 15 consecutive decreases; the new dt applies from the next step.
+  const int b = model_.dofsPerNode();
+  Real norm = 0;
+  for (Index i = 0; i < model_.numNodes(); ++i) norm += (x_.segment<3>(i * b) - x_old.segment<3>(i * b)).norm();
+  norm /= h;
+  if (prev_norm_ >= 0) {
+    const Real growth = norm - prev_norm_;
+    const Real ratio = prev_growth_ > 0 ? growth / prev_growth_ : 0;
+    if (norm > 1.2 * prev_norm_ || ratio > 7) {
+      dt_ = h / 2;
+      if (ratio >= 7) dt_ /= ratio;
+      decrease_count_ = 0;
+    } else if (norm < prev_norm_) {
+      if (++decrease_count_ >= 15) {
+        dt_ = 1.5 * h;
+        decrease_count_ = 0;
+      }
+    } else {
+      decrease_count_ = 0;
+    }
+    prev_growth_ = growth;
+  }
+  prev_norm_ = norm;
+  dt_ = std::clamp(dt_, settings_.dt_min, settings_.dt_max);
+}
+
+bool DrapeSimulation::stepOnce() {
+  using Clock = std::chrono::steady_clock;
+  for (;;) {
+    const Real h = settings_.policy == StepPolicy::kFixed ? settings_.dt : std::min(dt_, settings_.dt_max);
+    const auto t0 = Clock::now();
+    StepOutcome out = integrator_->step(model_, pins_, x_, v_, t_, h, x_new_, v_new_);
+    result_.step_ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    result_.solver_iterations += out.solver_iterations;
+    result_.degenerate_terms = std::max(result_.degenerate_terms, out.degenerate_terms);
+    std::string why;
+    if (out.ok && checkDivergence(x_new_, v_new_, &why)) {
+      out.ok = false;
+      out.failure = why;
+    }
+    Real next_dt = dt_;
+    if (out.ok && settings_.policy == StepPolicy::kErrorControlled) {
+      const Real err = std::max(out.error_estimate, 1e-300);
+      const Real factor = std::clamp(0.9 * std::pow(settings_.error_tolerance / err, 1.0 / out.error_order), 0.2, 2.0);
+      if (err > settings_.error_tolerance) {
+        out.ok = false;
+        out.failure = "local error above tolerance";
+        ++result_.rejected_steps;
+        dt_ = h * factor;
+        if (dt_ < settings_.dt_min) {
+          result_.diverged = true;
+          result_.divergence_reason = "step size fell below dt_min to meet the error tolerance";
+          result_.divergence_time = t_;
+          return false;
+        }
+        continue;
+      }
+      next_dt = std::min(settings_.dt_max, h * factor);
+    }
+    if (!out.ok) {
+      if (settings_.policy == StepPolicy::kFixed) {
+        result_.diverged = true;
+        result_.divergence_reason = out.failure;
+        result_.divergence_time = t_ + h;
+        return false;
+      }
+      ++result_.rejected_steps;
+      dt_ = h / 2;
+      if (dt_ < settings_.dt_min) {
+        result_.diverged = true;
+        result_.divergence_reason = out.failure + " (step size fell below dt_min)";
+        result_.divergence_time = t_ + h;
+        return false;
+      }
+      continue;
+    }
+    // Accept.
+    x_.swap(x_new_);  // x_new_ now holds the previous positions
+    v_.swap(v_new_);
+    t_ += h;
+    ++result_.steps;
+    if (post_) {
+      const auto t1 = Clock::now();
+      result_.post_step_events += post_->apply(x_new_, x_, v_);
+      result_.post_step_ms += std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+    }
+    model_.acceptStep(x_, v_);
+    if (settings_.policy == StepPolicy::kThesis) adaptThesis(x_new_, h);
+    if (settings_.policy == StepPolicy::kErrorControlled) dt_ = std::max(next_dt, settings_.dt_min);
+    if (settings_.trajectory_every > 0 && result_.steps % settings_.trajectory_every == 0)
+      trajectory_.push_back({t_, x_});
+
+    // Rest detection (pinned nodes included: a lifted textile is not at rest).
+    const int b = model_.dofsPerNode();
+    Real vmax = 0;
+    for (Index i = 0; i < model_.numNodes(); ++i) vmax = std::max(vmax, v_.segment<3>(i * b).norm());
+    const Real vmean = std::sqrt(2 * kineticEnergy() / std::max(total_mass_, 1e-300));
+    if (vmax < settings_.rest_speed && vmean < settings_.rest_mean_speed) {
+      if (rest_since_ < 0) rest_since_ = t_;
+      if (t_ - rest_since_ >= settings_.rest_duration && t_ >= settings_.rest_min_time) result_.rest_reached = true;
+    } else {
+      rest_since_ = -1;
+    }
+    return true;
+  }
+}
+
+RunResult DrapeSimulation::run(Real until) {
+  const auto start = std::chrono::steady_clock::now();
+  const Real stop = std::min(until, settings_.max_time);
+  while (!result_.rest_reached && !result_.diverged && t_ < stop - 1e-12) {
+    if (!stepOnce()) break;
+  }
+  result_.wall_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result_.sim_time = t_;
+  result_.kinetic_energy = kineticEnergy();
+  result_.potential_energy = model_.potentialEnergy(x_);
+  result_.mean_dt = result_.steps > 0 ? t_ / result_.steps : 0;
+  return result_;
+}
+
+// ---- save / resume --------------------------------------------------------------------------------
+
+namespace {
+constexpr const char* kStateMagic = "textile_handling_drape_state";
+constexpr int kStateVersion = 1;
+
+void writeVec(std::ostream& os, const char* key, const VecX& v) {
+  os << key << ' ' << v.size();
+  for (Index i = 0; i < v.size(); ++i) os << ' ' << v[i];
+  os << '\n';
+}
+
+Real parseReal(std::istream& is, const std::string& what) {
+  std::string tok;
+  if (!(is >> tok)) throw std::runtime_error("drape state: missing value for " + what);
+  char* end = nullptr;
+  const Real r = std::strtod(tok.c_str(), &end);
+  if (end == tok.c_str() || *end != '\0') throw std::runtime_error("drape state: bad number '" + tok + "' in " + what);
+  return r;
+}
+
+void expectKey(std::istream& is, const std::string& key) {
+  std::string tok;
+  if (!(is >> tok) || tok != key) throw std::runtime_error("drape state: expected '" + key + "', found '" + tok + "'");
+}
+
+VecX readVec(std::istream& is, const std::string& key, Index expected) {
+  expectKey(is, key);
+  const Real n = parseReal(is, key + " size");
+  if (n != expected) throw std::runtime_error("drape state: " + key + " has " + std::to_string(static_cast<long>(n)) +
+                                              " values, the model needs " + std::to_string(expected));
+  VecX v(expected);
+  for (Index i = 0; i < expected; ++i) v[i] = parseReal(is, key);
+  return v;
+}
+}  // namespace
+
+void DrapeSimulation::save(const std::string& path) const {
+  std::ostringstream os;
+  os << std::hexfloat;
+  os << kStateMagic << ' ' << kStateVersion << '\n';
+  os << "model " << model_.name() << " nodes " << model_.numNodes() << " dofs_per_node " << model_.dofsPerNode() << '\n';
+  os << "time " << t_ << "\ndt " << dt_ << '\n';
+  os << "thesis_rule " << prev_norm_ << ' ' << prev_growth_ << ' ' << decrease_count_ << '\n';
+  os << "rest_since " << rest_since_ << '\n';
+  os << "counters " << result_.steps << ' ' << result_.rejected_steps << ' ' << result_.solver_iterations << ' '
+     << result_.post_step_events << '\n';
+  os << "pins " << pins_.nodes.size() << '\n';
+  for (size_t k = 0; k < pins_.nodes.size(); ++k)
+    os << pins_.nodes[k] << ' ' << pins_.anchors[k].x() << ' ' << pins_.anchors[k].y() << ' ' << pins_.anchors[k].z() << '\n';
+  os << "waypoints " << pins_.waypoint_times.size() << '\n';
+  for (size_t k = 0; k < pins_.waypoint_times.size(); ++k)
+    os << pins_.waypoint_times[k] << ' ' << pins_.waypoint_offsets[k].x() << ' ' << pins_.waypoint_offsets[k].y()
+       << ' ' << pins_.waypoint_offsets[k].z() << '\n';
+  writeVec(os, "x", x_);
+  writeVec(os, "v", v_);
+  const std::vector<Real> internal = model_.internalState();
+  writeVec(os, "model_state", Eigen::Map<const VecX>(internal.data(), static_cast<Index>(internal.size())));
+  os << "end\n";
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp, std::ios::trunc);
+    if (!f) throw std::runtime_error("drape state: cannot write " + tmp);
+    f << os.str();
+    if (!f.good()) throw std::runtime_error("drape state: write failed for " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("drape state: cannot rename to " + path);
+}
+
+void DrapeSimulation::load(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error("drape state: cannot open " + path);
+  std::string magic;
+  f >> magic;
+  if (magic != kStateMagic) throw std::runtime_error("drape state: " + path + " is not a drape state file");
+  const Real version = parseReal(f, "version");
+  if (version != kStateVersion) throw std::runtime_error("drape state: unsupported version in " + path);
+  std::string model_name;
+  expectKey(f, "model");
+  f >> model_name;
+  if (model_name != model_.name())
+    throw std::runtime_error("drape state: file is for model '" + model_name + "', not '" + model_.name() + "'");
+  expectKey(f, "nodes");
+  if (parseReal(f, "nodes") != model_.numNodes()) throw std::runtime_error("drape state: node count mismatch");
+  expectKey(f, "dofs_per_node");
+  if (parseReal(f, "dofs_per_node") != model_.dofsPerNode()) throw std::runtime_error("drape state: DOF mismatch");
+  expectKey(f, "time");
+  const Real t = parseReal(f, "time");
+  expectKey(f, "dt");
+  const Real dt = parseReal(f, "dt");
+  expectKey(f, "thesis_rule");
+  const Real pn = parseReal(f, "thesis_rule"), pg = parseReal(f, "thesis_rule");
+  const int dc = static_cast<int>(parseReal(f, "thesis_rule"));
+  expectKey(f, "rest_since");
+  const Real rs = parseReal(f, "rest_since");
+  expectKey(f, "counters");
+  const long steps = static_cast<long>(parseReal(f, "counters")), rej = static_cast<long>(parseReal(f, "counters"));
+  const long its = static_cast<long>(parseReal(f, "counters")), ev = static_cast<long>(parseReal(f, "counters"));
+  expectKey(f, "pins");
+  const Real npins = parseReal(f, "pins");
+  if (!(npins >= 0 && npins <= model_.numNodes())) throw std::runtime_error("drape state: bad pin count");
+  PinnedNodes pins;
+  for (int k = 0; k < static_cast<int>(npins); ++k) {
+    const Real node = parseReal(f, "pin node");
+    if (!(node >= 0 && node < model_.numNodes())) throw std::runtime_error("drape state: pinned node out of range");
+    pins.nodes.push_back(static_cast<Index>(node));
+    Vec3 a;
+    for (int c = 0; c < 3; ++c) a[c] = parseReal(f, "pin anchor");
+    pins.anchors.push_back(a);
+  }
+  expectKey(f, "waypoints");
+  const Real nw = parseReal(f, "waypoints");
+  if (!(nw >= 0 && nw < 1e6)) throw std::runtime_error("drape state: bad waypoint count");
+  for (int k = 0; k < static_cast<int>(nw); ++k) {
+    pins.waypoint_times.push_back(parseReal(f, "waypoint time"));
+    Vec3 o;
+    for (int c = 0; c < 3; ++c) o[c] = parseReal(f, "waypoint offset");
+    pins.waypoint_offsets.push_back(o);
+  }
+  VecX x = readVec(f, "x", model_.numDofs());
+  VecX v = readVec(f, "v", model_.numDofs());
+  expectKey(f, "model_state");
+  const Real ns = parseReal(f, "model_state size");
+  if (!(ns >= 0 && ns < 1e9)) throw std::runtime_error("drape state: bad model_state size");
+  std::vector<Real> internal(static_cast<size_t>(ns));
+  for (auto& r : internal) r = parseReal(f, "model_state");
+  expectKey(f, "end");
+  if (!x.allFinite() || !v.allFinite() || !std::isfinite(t) || !(dt > 0))
+    throw std::runtime_error("drape state: non-finite values in " + path);
+  if (!model_.setInternalState(internal)) throw std::runtime_error("drape state: model rejected its internal state");
+  // Everything parsed: commit.
+  t_ = t;
+  dt_ = dt;
+  prev_norm_ = pn;
+  prev_growth_ = pg;
+  decrease_count_ = dc;
+  rest_since_ = rs;
+  result_ = RunResult{};
+  result_.steps = steps;
+  result_.rejected_steps = rej;
+  result_.solver_iterations = its;
+  result_.post_step_events = ev;
+  pins_ = std::move(pins);
+  x_ = std::move(x);
+  v_ = std::move(v);
+}
+
+}  // namespace textile_handling

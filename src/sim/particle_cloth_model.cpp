@@ -1,0 +1,253 @@
+#include "textile_handling/sim/particle_cloth_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "textile_handling/sim/textile_geometry.h"
+
+namespace textile_handling {
+
+ParticleTopology ParticleTopology::fromGrid(const ParticleGrid& g) {
+  ParticleTopology t;
+  t.spacing = g.spacing();
+  const Index n = g.numActive();
+  t.neighbour.resize(n);
+  t.grid.resize(n);
+  t.area.assign(n, 0.0);
+  for (int i = 0; i < g.rows(); ++i) {
+    for (int j = 0; j < g.cols(); ++j) {
+      const Index r = g.activeIndex(i, j);
+      if (r < 0) continue;
+      t.grid[r] = {i, j};
+      for (int dir = 0; dir < 4; ++dir) t.neighbour[r][dir] = g.neighbour(r, dir);
+    }
+  }
+  // Each complete cell gives a quarter of its area to each of its corners (exact for rectangles).
+  const Real quarter = 0.25 * t.spacing * t.spacing;
+  for (int i = 0; i + 1 < g.rows(); ++i) {
+    for (int j = 0; j + 1 < g.cols(); ++j) {
+      const Index c[4] = {g.activeIndex(i, j), g.activeIndex(i, j + 1), g.activeIndex(i + 1, j),
+                          g.activeIndex(i + 1, j + 1)};
+      if (c[0] < 0 || c[1] < 0 || c[2] < 0 || c[3] < 0) continue;
+      for (Index k : c) t.area[k] += quarter;
+    }
+  }
+  // Particles on one-particle-wide strips have no complete cell: give them a strip share.
+  for (Index r = 0; r < n; ++r) {
+    if (t.area[r] > 0) continue;
+    int nb = 0;
+    for (int dir = 0; dir < 4; ++dir) nb += t.neighbour[r][dir] >= 0;
+    t.area[r] = quarter * std::max(nb, 1);
+  }
+  return t;
+}
+
+ParticleClothModel::ParticleClothModel(ParticleTopology topology, Material material,
+                                       ParticleModelOptions options)
+    : topo_(std::move(topology)), material_(std::move(material)), options_(options) {
+  std::string error;
+  if (!material_.validate(&error)) throw std::invalid_argument("ParticleClothModel: " + error);
+  const Real d = topo_.spacing;
+  if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("ParticleClothModel: bad spacing");
+  if (!(options_.settle_damping >= 0) || !std::isfinite(options_.settle_damping))
+    throw std::invalid_argument("ParticleClothModel: settle_damping must be finite and >= 0");
+  const Index n = topo_.size();
+  if (n < 1) throw std::invalid_argument("ParticleClothModel: no particles");
+  c0_ = d * d * material_.tension_stiffness / 5.0;
+  mass_.resize(3 * n);
+  drag_coeff_.resize(n);
+  for (Index r = 0; r < n; ++r) {
+    const Real m = material_.areal_density * topo_.area[r];
+    mass_.segment<3>(3 * r).setConstant(m);
+    drag_coeff_[r] = 0.5 * material_.fluid_density * material_.drag_coefficient * topo_.area[r];
+  }
+
+  // Couplings: centre-neighbour (tension, all angles), neighbour j - neighbour j+1 (shear),
+  // neighbour j - neighbour j+2 (bending).
+  std::vector<std::pair<Index, Index>> couplings;
+  for (Index r = 0; r < n; ++r) {
+    const auto& nb = topo_.neighbour[r];
+    for (int j = 0; j < 4; ++j) {
+      if (nb[j] < 0) continue;
+      couplings.emplace_back(r, nb[j]);
+      if (nb[(j + 1) % 4] >= 0) couplings.emplace_back(nb[j], nb[(j + 1) % 4]);
+      if (j < 2 && nb[j + 2] >= 0) couplings.emplace_back(nb[j], nb[j + 2]);
+    }
+  }
+  pattern_ = BlockPattern(n, 3, couplings);
+
+  stencils_.resize(n);
+  colour_.assign(5, {});
+  for (Index r = 0; r < n; ++r) {
+    Stencil& st = stencils_[r];
+    st.node[0] = r;
+    for (int j = 0; j < 4; ++j) st.node[j + 1] = topo_.neighbour[r][j];
+    for (int a = 0; a < 5; ++a)
+      for (int b = 0; b < 5; ++b)
+        st.slot[a][b] = (st.node[a] >= 0 && st.node[b] >= 0) ? pattern_.find(st.node[a], st.node[b]) : -1;
+    // Plus-shaped stencils centred on (i + 2j) mod 5 == c tile the plane without overlap, so the
+    // stencils of one colour write disjoint rows and can run in parallel deterministically.
+    const int c = ((topo_.grid[r][0] + 2 * topo_.grid[r][1]) % 5 + 5) % 5;
+    colour_[c].push_back(r);
+  }
+}
+
+AngleProfile ParticleClothModel::shearProfile(Real theta) const {
+  // Mean of warp and weft KES shear curves; weight d^2/4 per corner angle (decisions 3, 5).
+  const Real w = 0.25 * topo_.spacing * topo_.spacing;
+  const Real t = std::abs(theta);
+  const Real sign = theta < 0 ? -1.0 : 1.0;
+  const Real F = 0.5 * (material_.shearForceSI(0, t) + material_.shearForceSI(1, t));
+  const Real dF = 0.5 * (material_.shearSlopeSI(0, t) + material_.shearSlopeSI(1, t));
+  AngleProfile p;
+  p.energy = w * 0.5 * (material_.shearEnergyDensitySI(0, t) + material_.shearEnergyDensitySI(1, t));
+  p.dE = w * sign * F;
+  p.d2E = w * dF;
+  p.secant = t > 0 ? w * F / t : p.d2E;
+  return p;
+}
+
+AngleProfile ParticleClothModel::bendProfile(int dir, Real theta) const {
+  // kappa = theta / d; E = d^2 * integral_0^kappa M; dE/dtheta = d M(kappa); d2E = M'(kappa).
+  const Real d = topo_.spacing;
+  const Real t = std::abs(theta);
+  const Real kappa = t / d;
+  AngleProfile p;
+  p.energy = d * d * material_.bendEnergyDensitySI(dir, kappa);
+  const Real M = material_.bendMomentSI(dir, kappa);
+  p.dE = d * M;
+  p.d2E = material_.bendSlopeSI(dir, kappa);
+  p.secant = t > 0 ? d * M / t : p.d2E;
+  return p;
+}
+
+Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, BlockSparseMatrix* K,
+                                     Real* energy) const {
+  const bool hess = K != nullptr;
+  const bool fix = options_.jacobian == JacobianMode::kDefiniteFix;
+  Index degenerate = 0;
+  const Index c = st.node[0];
+  const Vec3 p0 = node3(x, c);
+
+  // Tension: edges to the right and up neighbours, so every edge is visited once.
+  for (int j = 1; j <= 2; ++j) {
+    const Index q = st.node[j];
+    if (q < 0) continue;
+    TensionDerivatives t;
+    if (!tensionTerm(p0, node3(x, q), topo_.spacing, c0_, hess, fix, &t)) {
+      ++degenerate;
+      continue;
+    }
+    if (energy) *energy += t.energy;
+    node3(f, c) -= t.grad0;
+    node3(f, q) += t.grad0;
+    if (hess) {
+      K->add3(st.slot[0][0], -t.hess00);
+      K->add3(st.slot[j][j], -t.hess00);
+      K->add3(st.slot[0][j], t.hess00);
+      K->add3(st.slot[j][0], t.hess00);
+    }
+  }
+
+  auto addAngle = [&](int a, int b, AngleKind kind, int dir) {
+    const Index qa = st.node[a], qb = st.node[b];
+    AngleGeometry geo;
+    if (!angleGeometry(p0, node3(x, qa), node3(x, qb), &geo)) {
+      ++degenerate;
+      return;
+    }
+    const Real theta = kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
+    const AngleProfile prof = kind == AngleKind::kShear ? shearProfile(theta) : bendProfile(dir, theta);
+    AngleDerivatives ad;
+    angleTermDerivatives(geo, kind, prof, hess, fix, &ad);
+    if (!std::isfinite(ad.grad[0].squaredNorm())) {
+      ++degenerate;
+      return;
+    }
+    if (energy) *energy += ad.energy;
+    const int idx[3] = {0, a, b};
+    for (int u = 0; u < 3; ++u) node3(f, st.node[idx[u]]) -= ad.grad[u];
+    if (hess)
+      for (int u = 0; u < 3; ++u)
+        for (int w = 0; w < 3; ++w) K->add3(st.slot[idx[u]][idx[w]], -ad.hess[u][w]);
+  };
+
+  if (options_.shear) {
+    for (int j = 1; j <= 4; ++j) {
+      const int k = j % 4 + 1;
+      if (st.node[j] >= 0 && st.node[k] >= 0) addAngle(j, k, AngleKind::kShear, 0);
+    }
+  }
+  if (options_.bending) {
+    for (int j = 1; j <= 2; ++j) {
+      if (st.node[j] >= 0 && st.node[j + 2] >= 0) addAngle(j, j + 2, AngleKind::kBending, j - 1);
+    }
+  }
+  return degenerate;
+}
+
+ForceReport ParticleClothModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
+  const Index n = numNodes();
+  f.setZero(3 * n);
+  BlockSparseMatrix* K = nullptr;
+  if (jac) {
+    jac->dfdx.setZero();
+    jac->dfdv.setZero();
+    K = &jac->dfdx;
+  }
+  Index degenerate = 0;
+  for (const auto& group : colour_) {
+    const Index m = static_cast<Index>(group.size());
+#pragma omp parallel for schedule(static) reduction(+ : degenerate)
+    for (Index k = 0; k < m; ++k) degenerate += addStencil(stencils_[group[k]], x, f, K, nullptr);
+  }
+  // Per-particle external forces: gravity (-z) and drag.
+#pragma omp parallel for schedule(static)
+  for (Index r = 0; r < n; ++r) {
+    if (options_.gravity) f[3 * r + 2] -= mass_[3 * r] * kGravity;
+    if (options_.drag && drag_coeff_[r] > 0) {
+      DragDerivatives dd;
+      dragTerm(node3(v, r), drag_coeff_[r], jac != nullptr, &dd);
+      node3(f, r) += dd.force;
+      if (jac) jac->dfdv.add3(pattern_.diagonal(r), dd.dforce_dv);
+    }
+    if (options_.settle_damping > 0) {
+      const Real c = options_.settle_damping * mass_[3 * r];
+      node3(f, r) -= c * node3(v, r);
+      if (jac) jac->dfdv.add3(pattern_.diagonal(r), -c * Mat3::Identity());
+    }
+  }
+  return ForceReport{degenerate};
+}
+
+Real ParticleClothModel::potentialEnergy(const VecX& x) const {
+  const Index n = numNodes();
+  VecX scratch = VecX::Zero(3 * n);
+  std::vector<Real> per(n, 0.0);
+  for (Index r = 0; r < n; ++r) {
+    addStencil(stencils_[r], x, scratch, nullptr, &per[r]);
+    if (options_.gravity) per[r] += mass_[3 * r] * kGravity * x[3 * r + 2];
+  }
+  Real e = 0;
+  for (Real p : per) e += p;
+  return e;
+}
+
+Real ParticleClothModel::maxEdgeStretch(const VecX& x) const {
+  Real worst = 0;
+  const Index n = numNodes();
+  for (Index r = 0; r < n; ++r) {
+    for (int j = 0; j < 2; ++j) {
+      const Index q = topo_.neighbour[r][j];
+      if (q < 0) continue;
+      const Real len = (node3(x, r) - node3(x, q)).norm();
+      if (!std::isfinite(len)) return std::numeric_limits<Real>::infinity();
+      worst = std::max(worst, len / topo_.spacing);
+    }
+  }
+  return worst;
+}
+
+}  // namespace textile_handling

@@ -1,0 +1,7 @@
+// Shared main() of the ROS-free gtest suites (no ROS master needed).
+#include <gtest/gtest.h>
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
