@@ -1,0 +1,76 @@
+#include "textile_handling/sim/bench_chart.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace textile_handling {
+
+bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& points, const std::string& x_label,
+                      const std::string& y_label, const std::string& title, std::string* error) {
+  std::vector<ChartPoint> pts;
+  for (const auto& p : points)
+    if (p.x > 0 && p.y > 0 && std::isfinite(p.x) && std::isfinite(p.y)) pts.push_back(p);
+  if (pts.empty()) {
+    if (error) *error = "chart: no finite positive points";
+    return false;
+  }
+  const int W = 1100, H = 720, left = 90, right = 330, top = 50, bottom = 70;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (const auto& p : pts) {
+    x0 = std::min(x0, std::log10(p.x)); x1 = std::max(x1, std::log10(p.x));
+    y0 = std::min(y0, std::log10(p.y)); y1 = std::max(y1, std::log10(p.y));
+  }
+  x0 = std::floor(x0 - 0.1); x1 = std::ceil(x1 + 0.1);
+  y0 = std::floor(y0 - 0.1); y1 = std::ceil(y1 + 0.1);
+  const int pw = W - left - right, ph = H - top - bottom;
+  auto px = [&](double lx) { return left + static_cast<int>((lx - x0) / (x1 - x0) * pw); };
+  auto py = [&](double ly) { return top + ph - static_cast<int>((ly - y0) / (y1 - y0) * ph); };
+  const cv::Scalar grid(225, 225, 225), ink(40, 40, 40);
+  for (double e = x0; e <= x1 + 1e-9; e += 1) {
+    cv::line(img, {px(e), top}, {px(e), top + ph}, grid);
+    cv::putText(img, "1e" + std::to_string(static_cast<int>(e)), {px(e) - 15, top + ph + 22}, cv::FONT_HERSHEY_SIMPLEX,
+                0.45, ink, 1, cv::LINE_AA);
+  }
+  for (double e = y0; e <= y1 + 1e-9; e += 1) {
+    cv::line(img, {left, py(e)}, {left + pw, py(e)}, grid);
+    cv::putText(img, "1e" + std::to_string(static_cast<int>(e)), {left - 50, py(e) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
+                ink, 1, cv::LINE_AA);
+  }
+  cv::rectangle(img, {left, top}, {left + pw, top + ph}, ink);
+  cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.65, ink, 1, cv::LINE_AA);
+  cv::putText(img, x_label, {left + pw / 2 - 80, H - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, ink, 1, cv::LINE_AA);
+  cv::putText(img, y_label, {10, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
+  static const cv::Scalar palette[] = {{200, 80, 30}, {30, 150, 30}, {30, 30, 200}, {160, 40, 160},
+                                       {0, 140, 200}, {120, 120, 0}, {90, 90, 90},  {200, 0, 100}};
+  std::map<std::string, cv::Scalar> colour;
+  for (const auto& p : pts)
+    if (!colour.count(p.series)) colour[p.series] = palette[colour.size() % 8];
+  for (const auto& p : pts) {
+    const cv::Point c(px(std::log10(p.x)), py(std::log10(p.y)));
+    cv::circle(img, c, 6, colour[p.series], -1, cv::LINE_AA);
+    cv::putText(img, p.label, {c.x + 8, c.y - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.33, colour[p.series], 1, cv::LINE_AA);
+  }
+  int ly = top + 10;
+  for (const auto& [name, c] : colour) {
+    cv::circle(img, {left + pw + 25, ly}, 6, c, -1, cv::LINE_AA);
+    cv::putText(img, name, {left + pw + 38, ly + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
+    ly += 24;
+  }
+  try {
+    if (!cv::imwrite(path, img)) {
+      if (error) *error = "chart: cannot write " + path;
+      return false;
+    }
+  } catch (const cv::Exception& e) {
+    if (error) *error = std::string("chart: ") + e.what();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace textile_handling
