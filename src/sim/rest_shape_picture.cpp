@@ -35,9 +35,17 @@ void drawView(cv::Mat& canvas, const cv::Rect& roi, const ParticleTopology& t, c
               const std::vector<Cell>& cells, const Vec3& axis_u, const Vec3& axis_v, const Vec3& depth,
               const Vec3& lo, Real scale, const std::vector<Index>& highlight) {
   cv::Mat view = canvas(roi);
+  // Centre the shape horizontally in its view.
+  Real umin = 1e300, umax = -1e300;
+  for (Index i = 0; i < t.size(); ++i) {
+    const Real u = (node3(x, i) - lo).dot(axis_u);
+    umin = std::min(umin, u);
+    umax = std::max(umax, u);
+  }
+  const Real u_shift = 0.5 * roi.width - 0.5 * (umin + umax) * scale;
   auto project = [&](Index i) {
     const Vec3 p = node3(x, i) - lo;
-    return cv::Point(static_cast<int>(std::lround(10 + p.dot(axis_u) * scale)),
+    return cv::Point(static_cast<int>(std::lround(u_shift + p.dot(axis_u) * scale)),
                      static_cast<int>(std::lround(roi.height - 10 - p.dot(axis_v) * scale)));
   };
   std::vector<std::pair<Real, size_t>> order;
