@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 
+#include <algorithm>
 #include <cmath>
 
 namespace textile_handling {
@@ -37,11 +38,14 @@ bool tensionTerm(const Vec3& p0, const Vec3& p1, Real d, Real c0, bool want_hess
 }
 
 bool angleGeometry(const Vec3& p0, const Vec3& pa, const Vec3& pb, AngleGeometry* geo) {
-  geo->k1 = pa - p0;
-  geo->k2 = pb - p0;
-  geo->a = geo->k1.norm();
-  geo->b = geo->k2.norm();
-  if (!(geo->a > 0) || !(geo->b > 0) || !std::isfinite(geo->a) || !std::isfinite(geo->b)) return false;
+  // Check before writing: on degenerate input the outputs stay untouched (header contract).
+  const Vec3 k1 = pa - p0, k2 = pb - p0;
+  const Real a = k1.norm(), b = k2.norm();
+  if (!(a > 0) || !(b > 0) || !std::isfinite(a) || !std::isfinite(b)) return false;
+  geo->k1 = k1;
+  geo->k2 = k2;
+  geo->a = a;
+  geo->b = b;
   const Real dot = geo->k1.dot(geo->k2);
   const Real cross = geo->k1.cross(geo->k2).norm();
   const Real ab = geo->a * geo->b;
@@ -94,12 +98,14 @@ void angleTermDerivatives(const AngleGeometry& geo, AngleKind kind, const AngleP
     const Real s = geo.s;
     w1 = -p.dE / s;
     w2 = (p.d2E * s - p.dE * geo.c) / (s * s * s);
-    w_gn = p.d2E / (s * s);
+    w_gn = std::max(p.d2E, Real(0)) / (s * s);  // clamp: a falling curve must not break definiteness
   } else {
     const Real theta = kPi - geo.phi;
     out->theta = theta;
     const Real s = geo.s;  // = sin(theta)
-    flat = !(s > 1e-12);
+    // Only a nearly straight bend is "flat"; a fully folded one (theta -> pi) is a genuine
+    // singularity and yields a non-finite gradient that the model reports as degenerate.
+    flat = !(s > 1e-12) && theta < kPi / 2;
     const Real theta_over_sin = theta < 1e-4 ? 1 + theta * theta / 6 : theta / s;
     w1 = p.secant * theta_over_sin;
     if (flat) {
@@ -107,7 +113,7 @@ void angleTermDerivatives(const AngleGeometry& geo, AngleKind kind, const AngleP
       w_gn = 0;
     } else {
       w2 = ((p.d2E - p.secant) * s + p.secant * sinMinusTCos(theta)) / (s * s * s);
-      w_gn = p.d2E / (s * s);
+      w_gn = std::max(p.d2E, Real(0)) / (s * s);
     }
   }
   const Vec3 ga = w1 * geo.g1;
