@@ -2,6 +2,7 @@
 """Counts test cases in the JUnit XML files that catkin's run_tests wrote.
 
 - gtest-*.xml: one file per gtest suite; every test case counts.
+- MISSING-*.xml: written by catkin when a test produced no result file (a crash): one failure.
 - rosunit-<test-name>.xml: the gtest cases of a rostest's test node; every case counts.
 - rostest-*.xml: one summary case per <test> of a launch file ("test<test-name>"). It is not
   counted again when it passed; when it failed (node crash, time limit, no results) and the test
@@ -56,6 +57,10 @@ def main(results_dir):
     for n in sorted(files):
         if n.startswith("gtest-") or n.startswith("rosunit-"):
             count(n, cases_of(files[n]))
+        elif n.startswith("MISSING-"):
+            # catkin writes these when a test binary produced no results (crash, abort).
+            failed += 1
+            failures.append(f"{n}: the test produced no results (crashed?)")
     for n in sorted(files):
         if not n.startswith("rostest-"):
             continue

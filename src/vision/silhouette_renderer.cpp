@@ -1,0 +1,278 @@
+#include "textile_handling/vision/silhouette_renderer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "textile_handling/sim/particle_cloth_model.h"
+
+namespace textile_handling {
+namespace vision {
+
+namespace {
+
+constexpr double kDegToRad = kPi / 180.0;
+
+void validateMesh(const VecX& positions, const std::vector<Triangle>& triangles) {
+  if (positions.size() == 0 || positions.size() % 3 != 0) {
+    std::ostringstream os;
+    os << "silhouette renderer: positions must hold 3 values per vertex (got " << positions.size() << ")";
+    throw std::invalid_argument(os.str());
+  }
+  const Index n = static_cast<Index>(positions.size() / 3);
+  for (Index i = 0; i < positions.size(); ++i) {
+    if (!std::isfinite(positions[i])) {
+      std::ostringstream os;
+      os << "silhouette renderer: position of vertex " << i / 3 << " is not finite";
+      throw std::invalid_argument(os.str());
+    }
+  }
+  if (triangles.empty()) throw std::invalid_argument("silhouette renderer: mesh has no triangles");
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (Index v : triangles[t])
+      if (v < 0 || v >= n) {
+        std::ostringstream os;
+        os << "silhouette renderer: triangle " << t << " has vertex index " << v << " outside [0, " << n << ")";
+        throw std::invalid_argument(os.str());
+      }
+}
+
+void validateProjection(const SilhouetteProjection& p) {
+  if (p.type != ProjectionType::kPinhole) return;
+  if (!(p.camera_distance > 0) || !std::isfinite(p.camera_distance))
+    throw std::invalid_argument("silhouette renderer: pinhole camera_distance must be finite and > 0");
+  if (!std::isfinite(p.camera_height))
+    throw std::invalid_argument("silhouette renderer: pinhole camera_height must be finite");
+  const auto& k = p.intrinsics;
+  if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
+      !std::isfinite(k.cy))
+    throw std::invalid_argument("silhouette renderer: pinhole intrinsics need finite fx, fy > 0 and finite cx, cy");
+}
+
+// Maps world points of one view to canonical continuous pixel coordinates.
+struct ViewMapper {
+  Vec3 hold, dir, right;
+  bool pinhole = false;
+  double distance = 0, height = 0;
+  double inv_mpp = 0, cx = 0, top = 0;
+  double hold_xz = 0, hold_yz = 0;  // hold point's normalised image coordinates (pinhole)
+
+  ViewMapper(const Vec3& h, double azimuth_deg, const SilhouetteProjection& p, const CanonicalFrame& f)
+      : hold(h), dir(viewDirection(azimuth_deg)), right(viewRight(azimuth_deg)) {
+    pinhole = p.type == ProjectionType::kPinhole;
+    distance = p.camera_distance;
+    height = p.camera_height;
+    inv_mpp = 1.0 / f.metres_per_pixel;
+    cx = 0.5 * f.width_px;
+    top = f.top_margin_px;
+    if (pinhole) {
+      // Camera centre c = h - D d + height z; hold point at depth D, camera y axis = -z.
+      hold_xz = 0.0;
+      hold_yz = height / distance;  // Yc = -(h - c).z = height
+    }
+  }
+
+  // Returns false if the point is not in front of the camera (pinhole).
+  bool map(const Vec3& p, Vec2* out) const {
+    const Vec3 q = p - hold;  // relative to the hold point
+    if (!pinhole) {
+      *out = Vec2(cx + q.dot(right) * inv_mpp, top - q.z() * inv_mpp);
+      return true;
+    }
+    const double zc = q.dot(dir) + distance;
+    if (!(zc > 1e-2 * distance)) return false;
+    const double xc = q.dot(right);
+    const double yc = -q.z() + height;
+    const double s = distance * inv_mpp;
+    *out = Vec2(cx + s * (xc / zc - hold_xz), top + s * (yc / zc - hold_yz));
+    return true;
+  }
+};
+
+}  // namespace
+
+std::vector<Triangle> trianglesFromTopology(const ParticleTopology& topo) {
+  std::vector<Triangle> tris;
+  const Index n = topo.size();
+  tris.reserve(static_cast<std::size_t>(2 * n));
+  auto valid = [n](Index i) { return i >= 0 && i < n; };
+  for (Index p = 0; p < n; ++p) {
+    const Index right = topo.neighbour[p][0];
+    const Index up = topo.neighbour[p][1];
+    if (!valid(right) || !valid(up)) continue;
+    const Index right_up = topo.neighbour[right][1];
+    if (!valid(right_up) || topo.neighbour[up][0] != right_up) continue;
+    tris.push_back({p, right, right_up});
+    tris.push_back({p, right_up, up});
+  }
+  return tris;
+}
+
+CanonicalFrame CanonicalFrame::fromMetric(double width_m, double height_m, int width_px) {
+  if (!(width_m > 0) || !(height_m > 0) || !std::isfinite(width_m) || !std::isfinite(height_m) || width_px < 1)
+    throw std::invalid_argument("CanonicalFrame::fromMetric: sizes must be finite and > 0");
+  CanonicalFrame f;
+  f.width_px = width_px;
+  f.metres_per_pixel = width_m / width_px;
+  f.height_px = std::max(1, static_cast<int>(std::lround(height_m / f.metres_per_pixel)));
+  return f;
+}
+
+void CanonicalFrame::validate() const {
+  if (width_px < 1 || height_px < 1 || width_px > 8192 || height_px > 8192)
+    throw std::invalid_argument("CanonicalFrame: size must be 1..8192 px per side");
+  if (!(metres_per_pixel > 0) || !std::isfinite(metres_per_pixel))
+    throw std::invalid_argument("CanonicalFrame: metres_per_pixel must be finite and > 0");
+  if (!std::isfinite(top_margin_px) || top_margin_px < 0 || top_margin_px >= height_px)
+    throw std::invalid_argument("CanonicalFrame: top_margin_px must be in [0, height_px)");
+  if (supersample < 1 || supersample > 16) throw std::invalid_argument("CanonicalFrame: supersample must be 1..16");
+  if (!(coverage_threshold > 0) || coverage_threshold > 1)
+    throw std::invalid_argument("CanonicalFrame: coverage_threshold must be in (0, 1]");
+}
+
+std::vector<double> ViewSet::angles() const {
+  if (count < 1) throw std::invalid_argument("ViewSet: count must be >= 1 (got " + std::to_string(count) + ")");
+  if (!std::isfinite(start_deg) || !std::isfinite(step_deg))
+    throw std::invalid_argument("ViewSet: start_deg and step_deg must be finite");
+  std::vector<double> a(static_cast<std::size_t>(count));
+  for (int i = 0; i < count; ++i) a[static_cast<std::size_t>(i)] = start_deg + i * step_deg;
+  return a;
+}
+
+Vec3 viewDirection(double azimuth_deg) {
+  const double t = azimuth_deg * kDegToRad;
+  return Vec3(-std::sin(t), std::cos(t), 0.0);
+}
+
+Vec3 viewRight(double azimuth_deg) {
+  const double t = azimuth_deg * kDegToRad;
+  return Vec3(std::cos(t), std::sin(t), 0.0);
+}
+
+namespace detail {
+
+void rasterTriangles(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h,
+                     std::vector<std::uint8_t>& canvas) {
+  canvas.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), 0);
+  for (const Triangle& t : tris) {
+    const Vec2& a = pts[static_cast<std::size_t>(t[0])];
+    const Vec2& b = pts[static_cast<std::size_t>(t[1])];
+    const Vec2& c = pts[static_cast<std::size_t>(t[2])];
+    const double ymin = std::min({a.y(), b.y(), c.y()}), ymax = std::max({a.y(), b.y(), c.y()});
+    const double xmin = std::min({a.x(), b.x(), c.x()}), xmax = std::max({a.x(), b.x(), c.x()});
+    if (ymax < 0 || xmax < 0 || ymin > h || xmin > w) continue;
+    // Rows whose centre line y = r + 0.5 lies in [ymin, ymax].
+    const int r0 = std::max(0, static_cast<int>(std::ceil(ymin - 0.5)));
+    const int r1 = std::min(h - 1, static_cast<int>(std::floor(ymax - 0.5)));
+    const Vec2* v[3] = {&a, &b, &c};
+    for (int r = r0; r <= r1; ++r) {
+      const double yc = r + 0.5;
+      double xl = 1e300, xr = -1e300;
+      for (int e = 0; e < 3; ++e) {
+        const Vec2& p = *v[e];
+        const Vec2& q = *v[(e + 1) % 3];
+        const double lo = std::min(p.y(), q.y()), hi = std::max(p.y(), q.y());
+        if (yc < lo || yc > hi) continue;
+        if (hi - lo < 1e-12) {  // horizontal edge on the centre line
+          xl = std::min({xl, p.x(), q.x()});
+          xr = std::max({xr, p.x(), q.x()});
+        } else {
+          const double x = p.x() + (q.x() - p.x()) * (yc - p.y()) / (q.y() - p.y());
+          xl = std::min(xl, x);
+          xr = std::max(xr, x);
+        }
+      }
+      if (xl > xr) continue;
+      int c0 = static_cast<int>(std::ceil(xl - 0.5));
+      int c1 = static_cast<int>(std::floor(xr - 0.5));
+      if (c0 > c1) c0 = c1 = static_cast<int>(std::floor(0.5 * (xl + xr)));
+      c0 = std::max(c0, 0);
+      c1 = std::min(c1, w - 1);
+      if (c0 > c1) continue;
+      std::uint8_t* rowp = canvas.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(w);
+      std::fill(rowp + c0, rowp + c1 + 1, std::uint8_t{1});
+    }
+  }
+}
+
+BitMask downsampleCoverage(const std::vector<std::uint8_t>& canvas, int width, int height, int s, double threshold) {
+  BitMask m(width, height);
+  const int cw = width * s;
+  const int need = std::max(1, static_cast<int>(std::ceil(threshold * s * s - 1e-9)));
+  std::vector<int> colsum(static_cast<std::size_t>(width));
+  for (int y = 0; y < height; ++y) {
+    std::fill(colsum.begin(), colsum.end(), 0);
+    for (int sy = 0; sy < s; ++sy) {
+      const std::uint8_t* rowp = canvas.data() + static_cast<std::size_t>(y * s + sy) * static_cast<std::size_t>(cw);
+      for (int x = 0; x < width; ++x) {
+        int n = 0;
+        for (int sx = 0; sx < s; ++sx) n += rowp[x * s + sx];
+        colsum[static_cast<std::size_t>(x)] += n;
+      }
+    }
+    for (int x = 0; x < width; ++x)
+      if (colsum[static_cast<std::size_t>(x)] >= need) m.set(x, y);
+  }
+  return m;
+}
+
+}  // namespace detail
+
+Vec2 canonicalPixel(const Vec3& point, const Vec3& hold, double azimuth_deg, const SilhouetteProjection& projection,
+                    const CanonicalFrame& frame) {
+  frame.validate();
+  validateProjection(projection);
+  const ViewMapper vm(hold, azimuth_deg, projection, frame);
+  Vec2 out;
+  if (!vm.map(point, &out)) throw std::invalid_argument("canonicalPixel: point is not in front of the camera");
+  return out;
+}
+
+BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& triangles, const Vec3& hold,
+                         double azimuth_deg, const SilhouetteProjection& projection, const CanonicalFrame& frame) {
+  frame.validate();
+  validateProjection(projection);
+  validateMesh(positions, triangles);
+  if (!hold.allFinite()) throw std::invalid_argument("silhouette renderer: hold point is not finite");
+  if (!std::isfinite(azimuth_deg)) throw std::invalid_argument("silhouette renderer: view angle is not finite");
+
+  const ViewMapper vm(hold, azimuth_deg, projection, frame);
+  const Index n = static_cast<Index>(positions.size() / 3);
+  const int s = frame.supersample;
+  std::vector<Vec2> pts(static_cast<std::size_t>(n));
+  for (Index i = 0; i < n; ++i) {
+    Vec2 p;
+    if (!vm.map(node3(positions, i), &p)) {
+      std::ostringstream os;
+      os << "silhouette renderer: vertex " << i << " is behind or too close to the pinhole camera (camera distance "
+         << projection.camera_distance << " m)";
+      throw std::invalid_argument(os.str());
+    }
+    pts[static_cast<std::size_t>(i)] = p * static_cast<double>(s);
+  }
+  std::vector<std::uint8_t> canvas;
+  detail::rasterTriangles(pts, triangles, frame.width_px * s, frame.height_px * s, canvas);
+  return detail::downsampleCoverage(canvas, frame.width_px, frame.height_px, s, frame.coverage_threshold);
+}
+
+BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& triangles, Index hold_particle,
+                         double azimuth_deg, const SilhouetteProjection& projection, const CanonicalFrame& frame) {
+  if (hold_particle < 0 || 3 * static_cast<Eigen::Index>(hold_particle) + 2 >= positions.size())
+    throw std::invalid_argument("silhouette renderer: hold particle index " + std::to_string(hold_particle) +
+                                " out of range");
+  return renderSilhouette(positions, triangles, Vec3(node3(positions, hold_particle)), azimuth_deg, projection, frame);
+}
+
+std::vector<SilhouetteView> renderViews(const VecX& positions, const std::vector<Triangle>& triangles, const Vec3& hold,
+                                        const ViewSet& views, const SilhouetteProjection& projection,
+                                        const CanonicalFrame& frame) {
+  const std::vector<double> angles = views.angles();
+  std::vector<SilhouetteView> out;
+  out.reserve(angles.size());
+  for (double a : angles) out.push_back(SilhouetteView{a, renderSilhouette(positions, triangles, hold, a, projection, frame)});
+  return out;
+}
+
+}  // namespace vision
+}  // namespace textile_handling
