@@ -133,6 +133,20 @@ Real positive(const YAML::Node& parent, const char* key, Real fallback, const st
   return v;
 }
 
+// Scalars of other types, with an error naming the field instead of yaml-cpp's "bad conversion".
+std::string getString(const YAML::Node& n, const std::string& field) {
+  if (!n.IsScalar()) throw std::invalid_argument("scene: '" + field + "' must be a string");
+  return n.as<std::string>();
+}
+
+int getInt(const YAML::Node& n, const std::string& field) {
+  try {
+    return n.as<int>();
+  } catch (const YAML::Exception&) {
+    throw std::invalid_argument("scene: '" + field + "' must be an integer");
+  }
+}
+
 bool getBool(const YAML::Node& parent, const char* key, bool fallback, const std::string& where) {
   if (!parent[key]) return fallback;
   try {
@@ -165,7 +179,7 @@ TextileOutline parseTextile(const YAML::Node& n) {
   if (n.IsScalar()) return presetTextile(n.as<std::string>());
   if (!n.IsMap() || !n["outline"]) throw std::invalid_argument("scene: 'textile' must be a preset name or a map with 'outline'");
   TextileOutline t;
-  t.name = n["name"] ? n["name"].as<std::string>() : "custom";
+  t.name = n["name"] ? getString(n["name"], "textile.name") : "custom";
   for (const auto& v : n["outline"]) t.outline.push_back(getVec<2>(v, "textile.outline[]"));
   if (n["mirror_x"]) {
     t.mirrored = true;
@@ -174,11 +188,11 @@ TextileOutline parseTextile(const YAML::Node& n) {
   if (n["named_points"]) {
     for (const auto& it : n["named_points"]) {
       NamedPoint p;
-      p.name = it.first.as<std::string>();
+      p.name = getString(it.first, "textile.named_points");
       const YAML::Node& v = it.second;
       if (v.IsMap()) {
         p.position = getVec<2>(v["position"], "textile.named_points." + p.name);
-        p.kind = v["kind"] ? v["kind"].as<std::string>() : "grasp";
+        p.kind = v["kind"] ? getString(v["kind"], "textile.named_points." + p.name + ".kind") : "grasp";
       } else {
         p.position = getVec<2>(v, "textile.named_points." + p.name);
         p.kind = "grasp";
@@ -203,7 +217,7 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
   try {
     if (root["textile"]) s.textile = parseTextile(root["textile"]);
     if (root["material"]) {
-      const std::string m = root["material"].as<std::string>();
+      const std::string m = getString(root["material"], "material");
       if (m == "cotton") {
         s.material = Material::cotton();
       } else {
@@ -230,9 +244,9 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
     if (root["pinned_regions"])
       for (const auto& r : root["pinned_regions"]) s.pinned_regions.push_back(getVec<4>(r, "pinned_regions[]"));
     if (const YAML::Node m = root["model"]) {
-      if (m["name"]) s.model = m["name"].as<std::string>();
+      if (m["name"]) s.model = getString(m["name"], "model.name");
       if (m["jacobian"]) {
-        const std::string j = m["jacobian"].as<std::string>();
+        const std::string j = getString(m["jacobian"], "model.jacobian");
         if (j == "exact") s.model_options.jacobian = JacobianMode::kExact;
         else if (j == "definite_fix") s.model_options.jacobian = JacobianMode::kDefiniteFix;
         else throw std::invalid_argument("scene: 'model.jacobian' must be exact or definite_fix");
@@ -249,8 +263,22 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
     }
     if (const YAML::Node m = root["simulation"]) {
       SimulationSettings& t = s.settings;
-      if (m["integrator"]) t.integrator = integratorFromString(m["integrator"].as<std::string>());
-      if (m["policy"]) t.policy = stepPolicyFromString(m["policy"].as<std::string>());
+      if (m["integrator"]) {
+        const std::string name = getString(m["integrator"], "simulation.integrator");
+        try {
+          t.integrator = integratorFromString(name);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(std::string("scene: 'simulation.integrator': ") + e.what());
+        }
+      }
+      if (m["policy"]) {
+        const std::string name = getString(m["policy"], "simulation.policy");
+        try {
+          t.policy = stepPolicyFromString(name);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(std::string("scene: 'simulation.policy': ") + e.what());
+        }
+      }
       t.dt = positive(m, "dt_s", t.dt, "simulation.");
       t.dt_min = positive(m, "dt_min_s", t.dt_min, "simulation.");
       t.dt_max = positive(m, "dt_max_s", t.dt_max, "simulation.");
@@ -261,10 +289,10 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
       t.rest_duration = positive(m, "rest_duration_s", t.rest_duration, "simulation.");
       t.max_edge_stretch = positive(m, "max_edge_stretch", t.max_edge_stretch, "simulation.");
       t.solver.relative_tolerance = positive(m, "cg_tolerance", t.solver.relative_tolerance, "simulation.");
-      if (m["cg_max_iterations"]) t.solver.max_iterations = m["cg_max_iterations"].as<int>();
-      if (m["trajectory_every"]) t.trajectory_every = m["trajectory_every"].as<int>();
-      if (t.solver.max_iterations < 1 || t.trajectory_every < 0)
-        throw std::invalid_argument("scene: iteration counts must be non-negative");
+      if (m["cg_max_iterations"]) t.solver.max_iterations = getInt(m["cg_max_iterations"], "simulation.cg_max_iterations");
+      if (m["trajectory_every"]) t.trajectory_every = getInt(m["trajectory_every"], "simulation.trajectory_every");
+      if (t.solver.max_iterations < 1) throw std::invalid_argument("scene: 'simulation.cg_max_iterations' must be >= 1");
+      if (t.trajectory_every < 0) throw std::invalid_argument("scene: 'simulation.trajectory_every' must be >= 0");
     }
   } catch (const YAML::Exception& e) {
     throw std::invalid_argument(std::string("scene: wrong type: ") + e.what());

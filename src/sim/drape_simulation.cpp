@@ -221,6 +221,14 @@ Real parseReal(std::istream& is, const std::string& what) {
   return r;
 }
 
+// A non-negative integer count (checked before the conversion, which would be undefined for NaN).
+long parseCount(std::istream& is, const std::string& what, Real max) {
+  const Real r = parseReal(is, what);
+  if (!(r >= 0 && r <= max) || r != std::floor(r))
+    throw std::runtime_error("drape state: bad count in " + what + " (must be a non-negative integer)");
+  return static_cast<long>(r);
+}
+
 void expectKey(std::istream& is, const std::string& key) {
   std::string tok;
   if (!(is >> tok) || tok != key) throw std::runtime_error("drape state: expected '" + key + "', found '" + tok + "'");
@@ -283,7 +291,12 @@ void DrapeSimulation::load(const std::string& path) {
   if (model_name != model_.name())
     throw std::runtime_error("drape state: file is for model '" + model_name + "', not '" + model_.name() + "'");
   expectKey(f, "nodes");
-  if (parseReal(f, "nodes") != model_.numNodes()) throw std::runtime_error("drape state: node count mismatch");
+  const Real file_nodes = parseReal(f, "nodes");
+  if (file_nodes != model_.numNodes()) {
+    std::ostringstream m;
+    m << "drape state: node count mismatch (file " << file_nodes << ", model " << model_.numNodes() << ")";
+    throw std::runtime_error(m.str());
+  }
   expectKey(f, "dofs_per_node");
   if (parseReal(f, "dofs_per_node") != model_.dofsPerNode()) throw std::runtime_error("drape state: DOF mismatch");
   expectKey(f, "time");
@@ -292,12 +305,12 @@ void DrapeSimulation::load(const std::string& path) {
   const Real dt = parseReal(f, "dt");
   expectKey(f, "thesis_rule");
   const Real pn = parseReal(f, "thesis_rule"), pg = parseReal(f, "thesis_rule");
-  const int dc = static_cast<int>(parseReal(f, "thesis_rule"));
+  const int dc = static_cast<int>(parseCount(f, "thesis_rule", 1e9));
   expectKey(f, "rest_since");
   const Real rs = parseReal(f, "rest_since");
   expectKey(f, "counters");
-  const long steps = static_cast<long>(parseReal(f, "counters")), rej = static_cast<long>(parseReal(f, "counters"));
-  const long its = static_cast<long>(parseReal(f, "counters")), ev = static_cast<long>(parseReal(f, "counters"));
+  const long steps = parseCount(f, "counters", 1e18), rej = parseCount(f, "counters", 1e18);
+  const long its = parseCount(f, "counters", 1e18), ev = parseCount(f, "counters", 1e18);
   expectKey(f, "pins");
   const Real npins = parseReal(f, "pins");
   if (!(npins >= 0 && npins <= model_.numNodes())) throw std::runtime_error("drape state: bad pin count");
@@ -327,8 +340,20 @@ void DrapeSimulation::load(const std::string& path) {
   std::vector<Real> internal(static_cast<size_t>(ns));
   for (auto& r : internal) r = parseReal(f, "model_state");
   expectKey(f, "end");
-  if (!x.allFinite() || !v.allFinite() || !std::isfinite(t) || !(dt > 0))
+  if (!x.allFinite() || !v.allFinite() || !std::isfinite(t) || !(dt > 0) || !std::isfinite(dt))
     throw std::runtime_error("drape state: non-finite values in " + path);
+  // Pins and the step-controller memory are validated too: a NaN anchor would otherwise be
+  // accepted and poison the next step.
+  for (size_t k = 0; k < pins.anchors.size(); ++k)
+    if (!pins.anchors[k].allFinite()) throw std::runtime_error("drape state: non-finite pin anchor in " + path);
+  for (size_t k = 0; k < pins.waypoint_times.size(); ++k) {
+    if (!std::isfinite(pins.waypoint_times[k]) || !pins.waypoint_offsets[k].allFinite())
+      throw std::runtime_error("drape state: non-finite lift waypoint in " + path);
+    if (k > 0 && !(pins.waypoint_times[k] > pins.waypoint_times[k - 1]))
+      throw std::runtime_error("drape state: lift waypoint times do not increase in " + path);
+  }
+  if (!std::isfinite(pn) || !std::isfinite(pg) || !std::isfinite(rs))
+    throw std::runtime_error("drape state: non-finite step-controller or rest-timer values in " + path);
   if (!model_.setInternalState(internal)) throw std::runtime_error("drape state: model rejected its internal state");
   // Everything parsed: commit.
   t_ = t;

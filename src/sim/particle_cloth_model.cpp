@@ -87,6 +87,20 @@ ParticleClothModel::ParticleClothModel(ParticleTopology topology, Material mater
     for (int a = 0; a < 5; ++a)
       for (int b = 0; b < 5; ++b)
         st.slot[a][b] = (st.node[a] >= 0 && st.node[b] >= 0) ? pattern_.find(st.node[a], st.node[b]) : -1;
+    // Width shares: an edge or hinge represents half a cell row on each side where that side's cell
+    // exists; on a one-particle-wide strip it represents half a row (matching the strip's mass).
+    const auto& nb = topo_.neighbour[r];
+    auto cellExists = [&](Index a, int along, int side) {  // cell spanned by a, a+along, a+side
+      const Index b = topo_.neighbour[a][along], c = topo_.neighbour[a][side];
+      return b >= 0 && c >= 0 && topo_.neighbour[b][side] >= 0;
+    };
+    auto share = [](int cells) { return cells > 0 ? 0.5 * cells : 0.5; };
+    // Edge to the right: cells above (up) and below (down); edge up: cells right and left.
+    st.edge_width[0] = nb[0] < 0 ? 0 : share(cellExists(r, 0, 1) + cellExists(r, 0, 3));
+    st.edge_width[1] = nb[1] < 0 ? 0 : share(cellExists(r, 1, 0) + cellExists(r, 1, 2));
+    // Left-right hinge: the particle's extent in y; up-down hinge: its extent in x.
+    st.bend_width[0] = share((nb[1] >= 0) + (nb[3] >= 0));
+    st.bend_width[1] = share((nb[0] >= 0) + (nb[2] >= 0));
     // Plus-shaped stencils centred on (i + 2j) mod 5 == c tile the plane without overlap, so the
     // stencils of one colour write disjoint rows and can run in parallel deterministically.
     const int c = ((topo_.grid[r][0] + 2 * topo_.grid[r][1]) % 5 + 5) % 5;
@@ -136,7 +150,7 @@ Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, 
     const Index q = st.node[j];
     if (q < 0) continue;
     TensionDerivatives t;
-    if (!tensionTerm(p0, node3(x, q), topo_.spacing, c0_, hess, fix, &t)) {
+    if (!tensionTerm(p0, node3(x, q), topo_.spacing, c0_ * st.edge_width[j - 1], hess, fix, &t)) {
       ++degenerate;
       continue;
     }
@@ -159,7 +173,14 @@ Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, 
       return;
     }
     const Real theta = kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
-    const AngleProfile prof = kind == AngleKind::kShear ? shearProfile(theta) : bendProfile(dir, theta);
+    AngleProfile prof = kind == AngleKind::kShear ? shearProfile(theta) : bendProfile(dir, theta);
+    if (kind == AngleKind::kBending) {
+      const Real w = st.bend_width[dir];
+      prof.energy *= w;
+      prof.dE *= w;
+      prof.d2E *= w;
+      prof.secant *= w;
+    }
     AngleDerivatives ad;
     angleTermDerivatives(geo, kind, prof, hess, fix, &ad);
     if (!std::isfinite(ad.grad[0].squaredNorm())) {

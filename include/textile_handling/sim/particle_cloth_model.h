@@ -13,7 +13,9 @@
 //  5 SI units; shear energy weight d^2/4 per angle (four corner angles share a cell), bending d^2;
 //  6 angles with atan2 and the exact flat-sheet limit (see energy_kernels.h);
 //  7 terms with a missing neighbour are dropped;
-//  8 mass and drag area per particle = its share of the adjacent grid cells (d^2/4 per cell).
+//  8 mass and drag area per particle = its share of the adjacent grid cells (d^2/4 per cell); likewise
+//    every tension edge and bending hinge carries its width share (1/2 d per adjacent cell row), so a
+//    border row is as stiff as the half-width strip whose mass it carries.
 #pragma once
 
 #include <array>
@@ -85,6 +87,8 @@ class ParticleClothModel : public ClothModel {
   struct Stencil {
     Index node[5];      // centre, right, up, left, down (-1 if missing)
     Index slot[5][5];   // block slot between stencil nodes (-1 if either is missing)
+    Real edge_width[2]; // width share (in units of d) of the edges to the right and up neighbours
+    Real bend_width[2]; // width share (in units of d) of the left-right and up-down bending hinges
   };
   // Adds the terms of one stencil; returns the number of degenerate terms.
   Index addStencil(const Stencil& st, const VecX& x, VecX& f, BlockSparseMatrix* K, Real* energy) const;
