@@ -38,7 +38,9 @@ struct SimulationSettings {
   Real rest_min_time = 0.0;       ///< rest is not declared before this simulated time [s]
   // Divergence detection.
   Real max_edge_stretch = 3.0;    ///< current/rest edge length
-  Real max_speed = 50.0;          ///< RMS speed bound, the kinetic-energy blow-up test [m/s]
+  Real max_speed = 50.0;          ///< RMS speed bound [m/s]
+  // With static pins, kinetic + gravitational energy above the initial total energy (+1 % of
+  // M g extent) is also a divergence: energy was created.
   int trajectory_every = 0;       ///< store a frame every k accepted steps (0 = off)
 };
 
@@ -105,6 +107,8 @@ class DrapeSimulation {
   bool stepOnce();  // false when the run must stop (divergence)
   void adaptThesis(const VecX& x_old, Real h);
   bool checkDivergence(const VecX& x, const VecX& v, std::string* why) const;
+  void resetEnergyBudget();
+  Real gravitationalEnergy(const VecX& x) const;
 
   ClothModel& model_;
   PinnedNodes pins_;
@@ -122,6 +126,8 @@ class DrapeSimulation {
   RunResult result_;
   std::vector<TrajectoryFrame> trajectory_;
   Real total_mass_ = 0;
+  bool energy_check_ = false;
+  Real energy_budget_ = 0;  // upper bound of kinetic + gravitational energy (static pins)
 };
 
 }  // namespace textile_handling
