@@ -1,0 +1,866 @@
+// Tests for the collision module (docs/collision.md): triangulation, exact predicates, the
+// independent intersection checker, the three self-collision versions of the thesis on hand-made
+// failure scenes, obstacles, pinned particles, thread independence and two drape scenes.
+#include "textile_handling/sim/collision.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "textile_handling/sim/drape_scene.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+namespace textile_handling {
+namespace {
+
+using geom::orient2d;
+using geom::orient3d;
+using geom::segmentTriangleIntersect;
+using geom::triangleTriangleIntersect;
+using geom::triangleTriangleIntersectByEdges;
+
+// ---- helpers --------------------------------------------------------------------------------------
+
+// Topology of the given grid cells (row i, column j); neighbours are the 4-connected cells present.
+ParticleTopology topologyFromCells(const std::vector<std::array<int, 2>>& cells, Real spacing = 0.1) {
+  std::map<std::pair<int, int>, Index> id;
+  for (size_t k = 0; k < cells.size(); ++k) id[{cells[k][0], cells[k][1]}] = static_cast<Index>(k);
+  ParticleTopology t;
+  t.spacing = spacing;
+  for (const auto& c : cells) {
+    auto look = [&](int i, int j) {
+      const auto it = id.find({i, j});
+      return it == id.end() ? Index(-1) : it->second;
+    };
+    t.neighbour.push_back({look(c[0], c[1] + 1), look(c[0] + 1, c[1]), look(c[0], c[1] - 1), look(c[0] - 1, c[1])});
+    t.grid.push_back({c[0], c[1]});
+    t.area.push_back(spacing * spacing);
+  }
+  return t;
+}
+
+std::vector<std::array<int, 2>> block(int i0, int j0, int rows, int cols) {
+  std::vector<std::array<int, 2>> c;
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < cols; ++j) c.push_back({i0 + i, j0 + j});
+  return c;
+}
+
+// A flat grid state (rows x cols, spacing d, height z).
+VecX flatGrid(int rows, int cols, Real d, Real z = 0) {
+  VecX x(3 * rows * cols);
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < cols; ++j) x.segment<3>(3 * (i * cols + j)) = Vec3(j * d, i * d, z);
+  return x;
+}
+
+void setThreads(int n) {
+#ifdef _OPENMP
+  omp_set_num_threads(n);
+#else
+  (void)n;
+#endif
+}
+
+int maxThreads() {
+#ifdef _OPENMP
+  return omp_get_max_threads();
+#else
+  return 1;
+#endif
+}
+
+struct ThreadGuard {
+  int saved = maxThreads();
+  ~ThreadGuard() { setThreads(saved); }
+};
+
+// ---- the two failure scenes of the thesis -----------------------------------------------------------
+
+// Thesis 7.1 (version-1 failure): a point moves parallel to a surface while the surface moves so that
+// the old and the new position of the point end up on different sides, without the point's path (or
+// any vertex path of the surface) crossing a triangle. Patch A: a large 2x2 sheet rising from z = 0
+// to z = 0.2. Patch B: a 3x3 "cone" whose tip q (centre, z = 0.1) slides sideways while its other
+// particles stay at z = 0.3. After the step the sheet cuts through the cone.
+struct Scene {
+  ClothTriangles tris;
+  VecX x_old, x, v;
+  Index q = -1;  // the penetrating point
+  std::vector<Index> patch_a;
+};
+
+Scene pointPathFailureScene() {
+  auto cells = block(0, 0, 2, 2);      // patch A, particles 0..3
+  const auto b = block(10, 0, 3, 3);   // patch B, particles 4..12
+  cells.insert(cells.end(), b.begin(), b.end());
+  Scene s;
+  s.tris = ClothTriangles::fromTopology(topologyFromCells(cells));
+  const Index n = static_cast<Index>(cells.size());
+  s.x_old.resize(3 * n);
+  s.x.resize(3 * n);
+  for (Index k = 0; k < 4; ++k) {
+    const auto& c = cells[static_cast<size_t>(k)];
+    const Vec3 p(-1.0 + 2.0 * c[1], -1.0 + 2.0 * c[0], 0.0);
+    s.x_old.segment<3>(3 * k) = p;
+    s.x.segment<3>(3 * k) = p + Vec3(0, 0, 0.2);
+    s.patch_a.push_back(k);
+  }
+  for (Index k = 4; k < n; ++k) {
+    const auto& c = cells[static_cast<size_t>(k)];
+    const bool tip = c[0] == 11 && c[1] == 1;
+    const Vec3 p(0.05 + 0.1 * (c[1] - 1), 0.03 + 0.1 * (c[0] - 11), tip ? 0.1 : 0.3);
+    s.x_old.segment<3>(3 * k) = p;
+    s.x.segment<3>(3 * k) = tip ? Vec3(p + Vec3(0.02, 0.01, 0)) : p;
+    if (tip) s.q = k;
+  }
+  s.v = (s.x - s.x_old) / 1e-2;  // as if the step took 10 ms
+  return s;
+}
+
+// Thesis 7.2, failure case 1 (version-2 failure): the point q crosses triangle T' (left, flat half of
+// a creased sheet) while its edges cut the neighbouring triangle T (right half, sloping down), and
+// relative to T's plane q does not change sides. Patch A: 2 rows x 3 columns, crease along the
+// middle column; patch B: the triangle (q, right, up) with q moving down through T'.
+Scene creaseFailureScene() {
+  auto cells = block(0, 0, 2, 3);  // patch A, particles 0..5
+  cells.push_back({10, 0});        // q
+  cells.push_back({10, 1});        // its right neighbour
+  cells.push_back({11, 0});        // its up neighbour
+  Scene s;
+  s.tris = ClothTriangles::fromTopology(topologyFromCells(cells));
+  const Index n = static_cast<Index>(cells.size());
+  s.x_old.resize(3 * n);
+  for (Index k = 0; k < 6; ++k) {
+    const auto& c = cells[static_cast<size_t>(k)];
+    s.x_old.segment<3>(3 * k) = Vec3(-0.2 + 0.2 * c[1], 0.2 * c[0], c[1] == 2 ? -0.2 : 0.0);
+    s.patch_a.push_back(k);
+  }
+  s.q = 6;
+  s.x_old.segment<3>(3 * 6) = Vec3(-0.05, 0.15, 0.03);
+  s.x_old.segment<3>(3 * 7) = Vec3(0.15, 0.10, 0.05);
+  s.x_old.segment<3>(3 * 8) = Vec3(0.15, 0.18, 0.05);
+  s.x = s.x_old;
+  s.x.segment<3>(3 * 6) = Vec3(-0.05, 0.15, -0.03);
+  s.v = (s.x - s.x_old) / 1e-2;
+  return s;
+}
+
+SelfCollisionOptions versionOptions(SelfCollisionVersion v) {
+  SelfCollisionOptions o;
+  o.version = v;
+  o.d_min = 1e-3;
+  return o;
+}
+
+// Applies a pass to a copy of the scene; returns the final state.
+struct Applied {
+  VecX x, v;
+  long events = 0;
+  SelfCollisionStats stats;
+};
+Applied applyPass(const Scene& s, const SelfCollisionOptions& o, std::vector<char> pinned = {}) {
+  SelfCollisionPass pass(s.tris, std::move(pinned), o);
+  Applied a{s.x, s.v, 0, {}};
+  a.events = pass.apply(s.x_old, a.x, a.v);
+  a.stats = pass.lastStats();
+  return a;
+}
+
+// ---- triangulation -----------------------------------------------------------------------------------
+
+TEST(ClothTriangles, ThesisTriangulationOfAFullGrid) {
+  const auto topo = topologyFromCells(block(0, 0, 3, 3));
+  const ClothTriangles t = ClothTriangles::fromTopology(topo);
+  // 4 cells, 2 triangles each: every cell exactly once.
+  ASSERT_EQ(t.numTriangles(), 8);
+  EXPECT_EQ(t.num_vertices, 9);
+  // 12 grid edges and 4 diagonals (right-up of each cell).
+  EXPECT_EQ(t.num_grid_edges, 12);
+  EXPECT_EQ(t.numEdges(), 16);
+  // Particle 0 (corner) owns only (0, right, up); particle 8 (opposite corner) only (8, left, down).
+  EXPECT_GE(t.owned[0][0], 0);
+  EXPECT_EQ(t.owned[0][1], -1);
+  EXPECT_EQ(t.owned[8][0], -1);
+  EXPECT_GE(t.owned[8][1], 0);
+  EXPECT_EQ(t.triangles[static_cast<size_t>(t.owned[0][0])], (std::array<Index, 3>{0, 1, 3}));
+  EXPECT_EQ(t.triangles[static_cast<size_t>(t.owned[8][1])], (std::array<Index, 3>{8, 7, 5}));
+  // The centre owns both triangles.
+  EXPECT_EQ(t.triangles[static_cast<size_t>(t.owned[4][0])], (std::array<Index, 3>{4, 5, 7}));
+  EXPECT_EQ(t.triangles[static_cast<size_t>(t.owned[4][1])], (std::array<Index, 3>{4, 3, 1}));
+  // Every cell is split once along its right-up diagonal: each cell's two triangles share it.
+  std::map<std::pair<Index, Index>, int> diag_use;
+  for (Index k = 0; k < t.numTriangles(); ++k) {
+    const auto& c = t.triangles[static_cast<size_t>(k)];
+    diag_use[{std::min(c[1], c[2]), std::max(c[1], c[2])}]++;
+  }
+  EXPECT_EQ(diag_use.size(), 4u);
+  for (const auto& d : diag_use) EXPECT_EQ(d.second, 2);
+  // Consistent orientation: all normals +z on a flat grid.
+  const VecX x = flatGrid(3, 3, 0.1);
+  for (const auto& c : t.triangles) {
+    const Vec3 n = (node3(x, c[1]) - node3(x, c[0])).cross(node3(x, c[2]) - node3(x, c[0]));
+    EXPECT_GT(n.z(), 0);
+  }
+  // Vertex adjacency: the centre lies in 6 triangles, a corner of the split in 2 or 1.
+  EXPECT_EQ(t.vertex_triangle_start[5] - t.vertex_triangle_start[4], 6);
+  EXPECT_EQ(t.vertex_triangle_start[1] - t.vertex_triangle_start[0], 1);
+  EXPECT_EQ(t.vertex_triangle_start[3] - t.vertex_triangle_start[2], 2);
+  // Candidate set of the centre: every triangle touching 4, 5, 7, 3, 1 = all 8.
+  EXPECT_EQ(t.candidate_start[5] - t.candidate_start[4], 8);
+}
+
+TEST(ClothTriangles, MaskedGridKeepsOnlyCompleteTriangles) {
+  // L shape: 3x3 minus the upper-right particle (2, 2).
+  auto cells = block(0, 0, 3, 3);
+  cells.erase(std::remove(cells.begin(), cells.end(), std::array<int, 2>{2, 2}), cells.end());
+  const ClothTriangles t = ClothTriangles::fromTopology(topologyFromCells(cells));
+  // The upper-right cell keeps its (p0, right, up) triangle (corners (1,1), (1,2), (2,1) exist) and
+  // loses the (p0, left, down) one, whose owner is missing: 7 triangles.
+  EXPECT_EQ(t.numTriangles(), 7);
+  for (const auto& c : t.triangles)
+    for (Index v : c) EXPECT_LT(v, 8);
+  // A one-particle-wide strip has no triangles at all; its edges are still grid edges.
+  const ClothTriangles strip = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, 1, 4)));
+  EXPECT_EQ(strip.numTriangles(), 0);
+  EXPECT_EQ(strip.num_grid_edges, 3);
+}
+
+TEST(ClothTriangles, FromARasterisedTextile) {
+  const ParticleGrid g = ParticleGrid::rasterize(presetTextile("square"), 0.03, nullptr);
+  const ClothTriangles t = ClothTriangles::fromTopology(ParticleTopology::fromGrid(g));
+  EXPECT_EQ(t.num_vertices, 121);
+  EXPECT_EQ(t.numTriangles(), 2 * 10 * 10);
+  EXPECT_EQ(t.numEdges(), 2 * 11 * 10 + 10 * 10);
+  EXPECT_EQ(countIntersectingTrianglePairs(t, flatGrid(11, 11, 0.03)), 0);
+}
+
+// ---- exact predicates -----------------------------------------------------------------------------
+
+long long det3(const std::array<long long, 3>& a, const std::array<long long, 3>& b, const std::array<long long, 3>& c,
+               const std::array<long long, 3>& d) {
+  // ((b-a) x (c-a)) . (d-a) with __int128 (exact for |coordinates| < 2^20).
+  __int128 u[3], v[3], w[3];
+  for (int k = 0; k < 3; ++k) {
+    u[k] = b[k] - a[k];
+    v[k] = c[k] - a[k];
+    w[k] = d[k] - a[k];
+  }
+  const __int128 r = (u[1] * v[2] - u[2] * v[1]) * w[0] + (u[2] * v[0] - u[0] * v[2]) * w[1] + (u[0] * v[1] - u[1] * v[0]) * w[2];
+  return r > 0 ? 1 : (r < 0 ? -1 : 0);
+}
+
+TEST(ExactPredicates, Orient3dMatchesIntegerArithmetic) {
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> small(-3, 3), large(-(1 << 19), 1 << 19);
+  int zeros = 0;
+  for (int it = 0; it < 20000; ++it) {
+    std::array<std::array<long long, 3>, 4> p;
+    for (auto& q : p)
+      for (auto& c : q) c = it % 2 ? small(rng) : large(rng);
+    if (it % 3 == 0)  // force exact coplanarity: d = a + (b - a) + (c - a)
+      for (int k = 0; k < 3; ++k) p[3][static_cast<size_t>(k)] = p[1][k] + p[2][k] - p[0][k];
+    // An exact power-of-two scaling keeps the sign; test in [0, 1e-6) too.
+    const Real scale = it % 5 == 0 ? std::ldexp(1.0, -40) : 1.0;
+    Vec3 v[4];
+    for (int k = 0; k < 4; ++k) v[k] = Vec3(p[k][0], p[k][1], p[k][2]) * scale;
+    const int expect = static_cast<int>(det3(p[0], p[1], p[2], p[3]));
+    zeros += expect == 0;
+    ASSERT_EQ(orient3d(v[0], v[1], v[2], v[3]), expect) << "iteration " << it;
+  }
+  EXPECT_GT(zeros, 5000);  // the degenerate cases were exercised
+}
+
+TEST(ExactPredicates, Orient2dNearDegenerateWhereNaiveArithmeticFails) {
+  // Points p = (0.5 + i u, 0.5 + j u), u = 2^-53, against the line through (12, 12) and (24, 24):
+  // the naive double formula gets many of these signs wrong (Kettner et al. 2008).
+  const Real u = std::ldexp(1.0, -53);
+  const Vec2 q(12, 12), r(24, 24);
+  int naive_wrong = 0;
+  for (int i = 0; i < 64; ++i)
+    for (int j = 0; j < 64; ++j) {
+      const Vec2 p(0.5 + i * u, 0.5 + j * u);
+      // Exact reference: scale by 2^53 to integers (p = 2^52 + i, ...), products fit in __int128.
+      const __int128 px = (static_cast<__int128>(1) << 52) + i, py = (static_cast<__int128>(1) << 52) + j;
+      const __int128 qx = static_cast<__int128>(12) << 53, rx = static_cast<__int128>(24) << 53;
+      const __int128 det = (qx - px) * (rx - py) - (qx - py) * (rx - px);
+      const int expect = det > 0 ? 1 : (det < 0 ? -1 : 0);
+      EXPECT_EQ(orient2d(p, q, r), expect) << i << "," << j;
+      const Real naive = (q.x() - p.x()) * (r.y() - p.y()) - (q.y() - p.y()) * (r.x() - p.x());
+      naive_wrong += (naive > 0 ? 1 : (naive < 0 ? -1 : 0)) != expect;
+    }
+  EXPECT_GT(naive_wrong, 0);  // the example really is hard for plain doubles
+}
+
+TEST(ExactPredicates, SegmentTriangleCases) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(0.2, 0.2, -1), Vec3(0.2, 0.2, 1), a, b, c));   // crossing
+  EXPECT_FALSE(segmentTriangleIntersect(Vec3(0.8, 0.8, -1), Vec3(0.8, 0.8, 1), a, b, c));  // misses
+  EXPECT_FALSE(segmentTriangleIntersect(Vec3(0.2, 0.2, 0.1), Vec3(0.2, 0.2, 1), a, b, c)); // above
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(0.2, 0.2, 0), Vec3(0.2, 0.2, 1), a, b, c));    // endpoint on face
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(0.5, 0.5, -1), Vec3(0.5, 0.5, 1), a, b, c));   // through an edge
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(0, 0, -1), Vec3(0, 0, 1), a, b, c));           // through a vertex
+  // Coplanar: overlapping and disjoint.
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(-1, 0.2, 0), Vec3(2, 0.2, 0), a, b, c));
+  EXPECT_FALSE(segmentTriangleIntersect(Vec3(-1, 2, 0), Vec3(2, 2, 0), a, b, c));
+  EXPECT_TRUE(segmentTriangleIntersect(Vec3(0.1, 0.1, 0), Vec3(0.2, 0.1, 0), a, b, c));  // inside
+}
+
+// ---- triangle-triangle test (the checker's narrow phase) ------------------------------------------------
+
+TEST(TriangleTriangle, HandMadePairs) {
+  const Vec3 a(0, 0, 0), b(1, 0, 0), c(0, 1, 0);
+  // Crossing: a vertical triangle piercing the face.
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.2, 0.2, -0.5), Vec3(0.3, 0.2, 0.5), Vec3(0.2, 0.3, 0.5)));
+  // Touching along an edge: the other triangle stands on the face, its lower edge lying in it.
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.1, 0.1, 0), Vec3(0.4, 0.1, 0), Vec3(0.2, 0.1, 1)));
+  // Touching in one point: a vertex on the face.
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.2, 0.2, 0), Vec3(0.3, 0.2, 1), Vec3(0.2, 0.3, 1)));
+  // Edge against edge (the two boundaries cross in one point).
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.5, -0.5, 0), Vec3(0.5, 0.5, 0), Vec3(0.5, 0, 1)));
+  // Parallel planes, separated.
+  EXPECT_FALSE(triangleTriangleIntersect(a, b, c, Vec3(0, 0, 1e-9), Vec3(1, 0, 1e-9), Vec3(0, 1, 1e-9)));
+  // Non-parallel but apart (the planes cut outside both triangles).
+  EXPECT_FALSE(triangleTriangleIntersect(a, b, c, Vec3(2, 2, -1), Vec3(3, 2, 1), Vec3(2, 3, 1)));
+  // Coplanar overlap counts as intersecting (decision, docs/collision.md).
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.2, 0.2, 0), Vec3(1.2, 0.2, 0), Vec3(0.2, 1.2, 0)));
+  // Coplanar, one inside the other.
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(0.1, 0.1, 0), Vec3(0.2, 0.1, 0), Vec3(0.1, 0.2, 0)));
+  // Coplanar, disjoint; and coplanar, touching at a vertex.
+  EXPECT_FALSE(triangleTriangleIntersect(a, b, c, Vec3(1, 1, 0), Vec3(2, 1, 0), Vec3(1, 2, 0)));
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, Vec3(1, 0, 0), Vec3(2, 0, 0), Vec3(2, 1, 0)));
+  // Neighbouring grid triangles that share an edge do intersect (the checker skips such pairs).
+  EXPECT_TRUE(triangleTriangleIntersect(a, b, c, b, Vec3(1, 1, 0), c));
+}
+
+TEST(TriangleTriangle, DevillersGuigueAgreesWithEdgeTestsOnRandomAndDegenerateInput) {
+  std::mt19937 rng(11);
+  std::uniform_int_distribution<int> coord(-2, 2);  // a tiny lattice: many touching/coplanar cases
+  std::uniform_real_distribution<Real> real(-1, 1);
+  long hits = 0;
+  for (int it = 0; it < 40000; ++it) {
+    Vec3 p[6];
+    for (auto& v : p) v = it % 2 ? Vec3(coord(rng), coord(rng), coord(rng)) : Vec3(real(rng), real(rng), real(rng));
+    if (it % 7 == 0)
+      for (int k = 3; k < 6; ++k) p[k].z() = p[0].z();  // coplanar-ish sets
+    const bool dg = triangleTriangleIntersect(p[0], p[1], p[2], p[3], p[4], p[5]);
+    const bool edges = triangleTriangleIntersectByEdges(p[0], p[1], p[2], p[3], p[4], p[5]);
+    ASSERT_EQ(dg, edges) << "iteration " << it;
+    // Symmetric in the two triangles and in the vertex order.
+    ASSERT_EQ(dg, triangleTriangleIntersect(p[3], p[4], p[5], p[0], p[1], p[2]));
+    ASSERT_EQ(dg, triangleTriangleIntersect(p[1], p[0], p[2], p[5], p[3], p[4]));
+    hits += dg;
+  }
+  EXPECT_GT(hits, 1000);
+  EXPECT_LT(hits, 39000);
+}
+
+// ---- the independent checker -------------------------------------------------------------------------
+
+TEST(IntersectionChecker, FlatAndFoldedGridsAreClean) {
+  const int R = 12, C = 12;
+  const ClothTriangles t = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, R, C), 0.01));
+  VecX x = flatGrid(R, C, 0.01);
+  EXPECT_EQ(countIntersectingTrianglePairs(t, x), 0);
+  // Fold the right half over the left half, 2 mm above it: close but apart.
+  for (int i = 0; i < R; ++i)
+    for (int j = 7; j < C; ++j) x.segment<3>(3 * (i * C + j)) = Vec3((12 - j) * 0.01, i * 0.01, 0.002 + (j - 6) * 1e-4);
+  EXPECT_EQ(countIntersectingTrianglePairs(t, x), 0);
+  // Push one particle of the upper layer through the lower one.
+  x[3 * (5 * C + 9) + 2] = -0.003;
+  EXPECT_GT(countIntersectingTrianglePairs(t, x), 0);
+}
+
+TEST(IntersectionChecker, BroadPhaseMatchesBruteForce) {
+  std::mt19937 rng(3);
+  std::normal_distribution<Real> noise(0, 0.012);
+  const int R = 14, C = 14;
+  const ClothTriangles t = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, R, C), 0.01));
+  long total = 0;
+  for (int trial = 0; trial < 5; ++trial) {
+    VecX x = flatGrid(R, C, 0.01);
+    for (Index k = 0; k < x.size(); ++k) x[k] += noise(rng);  // crumpled: many intersections
+    const long fast = countIntersectingTrianglePairs(t, x);
+    EXPECT_EQ(fast, countIntersectingTrianglePairsBruteForce(t, x));
+    total += fast;
+    // The pair list is sorted and contains no pair sharing a vertex.
+    const auto pairs = findIntersectingTrianglePairs(t, x);
+    EXPECT_TRUE(std::is_sorted(pairs.begin(), pairs.end()));
+    for (const auto& p : pairs) EXPECT_FALSE(t.trianglesShareVertex(p.first, p.second));
+  }
+  EXPECT_GT(total, 50);
+}
+
+TEST(SpatialHash, QueriesReturnEveryOverlappingBoxOnce) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<Real> pos(-0.2, 0.2), size(0.0, 0.04);
+  std::vector<geom::Aabb> boxes(600);
+  for (size_t k = 0; k < boxes.size(); ++k) {
+    const Vec3 lo(pos(rng), pos(rng), pos(rng));
+    boxes[k].lo = lo;
+    boxes[k].hi = lo + Vec3(size(rng), size(rng), k % 50 == 0 ? 1.0 : size(rng));  // a few oversized
+  }
+  geom::SpatialHash hash;
+  hash.build(boxes, 0.02);
+  geom::SpatialHash::Query query(hash);
+  for (int it = 0; it < 300; ++it) {
+    geom::Aabb q;
+    q.lo = Vec3(pos(rng), pos(rng), pos(rng));
+    q.hi = q.lo + Vec3(size(rng), size(rng), size(rng)) * 2;
+    std::vector<int> got, want;
+    query.forEachOverlap(q, [&](int id) { got.push_back(id); });
+    for (int k = 0; k < hash.size(); ++k)
+      if (boxes[static_cast<size_t>(k)].overlaps(q)) want.push_back(k);
+    std::sort(got.begin(), got.end());
+    EXPECT_TRUE(std::adjacent_find(got.begin(), got.end()) == got.end()) << "duplicate report";
+    // Conservative: every overlapping box is reported; extra ones only within float rounding.
+    EXPECT_TRUE(std::includes(got.begin(), got.end(), want.begin(), want.end()));
+    EXPECT_LE(got.size(), want.size() + 2);
+  }
+}
+
+// ---- thesis failure cases ------------------------------------------------------------------------------
+
+TEST(SelfCollisionFailureCases, PointPathVersionMissesTheMovingSurface) {
+  const Scene s = pointPathFailureScene();
+  ASSERT_EQ(countIntersectingTrianglePairs(s.tris, s.x_old), 0);  // x_old is collision-free
+  ASSERT_GT(countIntersectingTrianglePairs(s.tris, s.x), 0);      // the step penetrated
+  // v1: neither the tip's path nor any vertex path crosses a triangle -> nothing is detected.
+  const Applied v1 = applyPass(s, versionOptions(SelfCollisionVersion::kPointPath));
+  EXPECT_EQ(v1.events, 0);
+  EXPECT_EQ(v1.stats.crossings, 0);
+  EXPECT_GT(countIntersectingTrianglePairs(s.tris, v1.x), 0);
+  // v3 resolves it through the thesis mechanism alone (no fallback needed).
+  SelfCollisionOptions o3 = versionOptions(SelfCollisionVersion::kRollback);
+  o3.fallback_rollback = false;
+  const Applied v3 = applyPass(s, o3);
+  EXPECT_GT(v3.events, 0);
+  EXPECT_GT(v3.stats.thesis_events, 0);
+  EXPECT_EQ(v3.stats.fallback_events, 0);
+  EXPECT_EQ(v3.stats.unresolved, 0);
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v3.x), 0);
+  // The tip was rolled back to its old position.
+  EXPECT_EQ(Vec3(node3(v3.x, s.q)), Vec3(node3(s.x_old, s.q)));
+  // With the default options and with the literal thesis options as well.
+  const Applied v3d = applyPass(s, versionOptions(SelfCollisionVersion::kRollback));
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v3d.x), 0);
+  EXPECT_EQ(v3d.stats.unresolved, 0);
+  const Applied v3t = applyPass(s, SelfCollisionOptions::thesisLiteral());
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v3t.x), 0);
+}
+
+TEST(SelfCollisionFailureCases, EdgeVersionMissesTheCrossedNeighbourTriangle) {
+  const Scene s = creaseFailureScene();
+  ASSERT_EQ(countIntersectingTrianglePairs(s.tris, s.x_old), 0);
+  ASSERT_GT(countIntersectingTrianglePairs(s.tris, s.x), 0);
+  // v2: the edges of q cut triangle T of the sloped half, but relative to T's plane neither endpoint
+  // changed sides; the triangle q actually crossed (flat half) is never looked at.
+  const Applied v2 = applyPass(s, versionOptions(SelfCollisionVersion::kEdge));
+  EXPECT_GT(v2.stats.crossings, 0);  // the edge-triangle crossings were found ...
+  EXPECT_EQ(v2.events, 0);           // ... but not resolved
+  EXPECT_GT(countIntersectingTrianglePairs(s.tris, v2.x), 0);
+  // v3: the candidate set of the crossed triangle's owner contains the flat neighbour, relative to
+  // which q changed sides: q is rolled back.
+  SelfCollisionOptions o3 = versionOptions(SelfCollisionVersion::kRollback);
+  o3.fallback_rollback = false;
+  const Applied v3 = applyPass(s, o3);
+  EXPECT_GT(v3.stats.thesis_events, 0);
+  EXPECT_EQ(v3.stats.unresolved, 0);
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v3.x), 0);
+  EXPECT_EQ(Vec3(node3(v3.x, s.q)), Vec3(node3(s.x_old, s.q)));
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, applyPass(s, SelfCollisionOptions::thesisLiteral()).x), 0);
+  // v1 handles this one (the path of q crosses the flat triangle): the two versions fail differently.
+  const Applied v1 = applyPass(s, versionOptions(SelfCollisionVersion::kPointPath));
+  EXPECT_GT(v1.events, 0);
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v1.x), 0);
+  EXPECT_GT(node3(v1.x, s.q).z(), 0);  // pushed back above the flat half by d_min
+}
+
+TEST(SelfCollisionFailureCases, PushVersionsPushByDminAndReflect) {
+  const Scene s = creaseFailureScene();
+  SelfCollisionOptions o = versionOptions(SelfCollisionVersion::kPointPath);
+  o.d_min = 2e-3;
+  const Applied v1 = applyPass(s, o);
+  // The hit point on the flat triangle is (x, y, 0); the push puts q at d_min above it.
+  EXPECT_NEAR(node3(v1.x, s.q).z(), 2e-3, 1e-12);
+  EXPECT_NEAR(node3(v1.x, s.q).x(), -0.05, 1e-12);
+  // Velocity reflected: the downward normal velocity now points up with the same magnitude.
+  EXPECT_NEAR(node3(v1.v, s.q).z(), -node3(s.v, s.q).z(), 1e-12);
+}
+
+TEST(SelfCollisionFailureCases, VelocityResponses) {
+  const Scene s = pointPathFailureScene();
+  for (auto resp : {CollisionResponse::kStop, CollisionResponse::kThesis, CollisionResponse::kRelative}) {
+    SelfCollisionOptions o = versionOptions(SelfCollisionVersion::kRollback);
+    o.response = resp;
+    const Applied a = applyPass(s, o);
+    EXPECT_EQ(countIntersectingTrianglePairs(s.tris, a.x), 0);
+    const Vec3 vq = node3(a.v, s.q);
+    if (resp == CollisionResponse::kStop) {
+      EXPECT_EQ(vq, Vec3::Zero());
+    } else if (resp == CollisionResponse::kThesis) {
+      // The tip moved sideways only: v_n = 0, so the reflection keeps its velocity.
+      EXPECT_NEAR((vq - Vec3(node3(s.v, s.q))).norm(), 0.0, 1e-12);
+    } else {
+      // The sheet approached the tip from below at 20 m/s: the relative normal velocity is reversed.
+      EXPECT_GT(vq.z(), 0);
+    }
+  }
+}
+
+// ---- v3 on random crumpling: always intersection-free, thread-independent ------------------------------
+
+struct RandomCrumple {
+  ClothTriangles tris;
+  VecX x_old, x, v;
+};
+
+RandomCrumple randomCrumple(int R, int C, Real amplitude, unsigned seed) {
+  RandomCrumple r;
+  r.tris = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, R, C), 0.01));
+  r.x_old = flatGrid(R, C, 0.01);
+  std::mt19937 rng(seed);
+  std::normal_distribution<Real> noise(0, amplitude);
+  r.x = r.x_old;
+  for (Index k = 0; k < r.x.size(); ++k) r.x[k] += noise(rng);
+  r.v = (r.x - r.x_old) / 1e-3;
+  return r;
+}
+
+TEST(SelfCollisionRollback, RandomStepsEndIntersectionFree) {
+  for (unsigned seed = 1; seed <= 4; ++seed) {
+    const RandomCrumple r = randomCrumple(16, 16, 0.008, seed);
+    ASSERT_GT(countIntersectingTrianglePairs(r.tris, r.x), 0);
+    SelfCollisionPass pass(r.tris, {}, SelfCollisionOptions{});
+    VecX x = r.x, v = r.v;
+    pass.apply(r.x_old, x, v);
+    EXPECT_EQ(pass.lastStats().unresolved, 0);
+    EXPECT_EQ(countIntersectingTrianglePairs(r.tris, x), 0) << "seed " << seed;
+    // Every particle is at its old or its new position (rollback never invents positions).
+    for (Index p = 0; p < r.tris.num_vertices; ++p) {
+      const Vec3 xp = node3(x, p);
+      EXPECT_TRUE(xp == Vec3(node3(r.x_old, p)) || xp == Vec3(node3(r.x, p)));
+    }
+  }
+}
+
+TEST(SelfCollisionRollback, PassCapIsRespectedAndReported) {
+  const RandomCrumple r = randomCrumple(16, 16, 0.01, 9);
+  SelfCollisionOptions o;
+  o.max_passes = 1;
+  SelfCollisionPass pass(r.tris, {}, o);
+  VecX x = r.x, v = r.v;
+  pass.apply(r.x_old, x, v);
+  EXPECT_EQ(pass.lastStats().passes, 1);
+  EXPECT_GT(pass.lastStats().unresolved, 0);  // one pass is not enough for this much crumpling
+}
+
+TEST(SelfCollisionRollback, ResultsDoNotDependOnTheThreadCount) {
+  ThreadGuard guard;
+  for (auto version : {SelfCollisionVersion::kPointPath, SelfCollisionVersion::kEdge, SelfCollisionVersion::kRollback}) {
+    // Large enough (> 2048 triangles) for the parallel code paths to run.
+    const RandomCrumple r = randomCrumple(50, 50, 0.006, 21);
+    std::vector<VecX> xs, vs;
+    std::vector<long> events;
+    for (int threads : {1, 2, 4}) {
+      setThreads(threads);
+      SelfCollisionOptions o;
+      o.version = version;
+      SelfCollisionPass pass(r.tris, {}, o);
+      VecX x = r.x, v = r.v;
+      events.push_back(pass.apply(r.x_old, x, v));
+      xs.push_back(x);
+      vs.push_back(v);
+      EXPECT_EQ(countIntersectingTrianglePairs(r.tris, x), countIntersectingTrianglePairs(r.tris, xs.front()));
+    }
+    for (size_t k = 1; k < xs.size(); ++k) {
+      EXPECT_EQ(events[k], events[0]) << toString(version);
+      EXPECT_TRUE(xs[k] == xs[0]) << toString(version);  // bitwise
+      EXPECT_TRUE(vs[k] == vs[0]) << toString(version);
+    }
+  }
+}
+
+// ---- pinned particles -------------------------------------------------------------------------------
+
+TEST(PinnedParticles, NeverMovedBySelfCollision) {
+  // Pin the rising sheet of the point-path scene: it moves by prescription, so the pass may not
+  // roll it back; the crossing then cannot be resolved and must be reported as unresolved.
+  const Scene s = pointPathFailureScene();
+  std::vector<char> pinned(static_cast<size_t>(s.tris.num_vertices), 0);
+  for (Index p : s.patch_a) pinned[static_cast<size_t>(p)] = 1;
+  for (auto version : {SelfCollisionVersion::kPointPath, SelfCollisionVersion::kEdge, SelfCollisionVersion::kRollback}) {
+    for (auto resp : {CollisionResponse::kStop, CollisionResponse::kThesis, CollisionResponse::kRelative}) {
+      SelfCollisionOptions o = versionOptions(version);
+      o.response = resp;
+      const Applied a = applyPass(s, o, pinned);
+      for (Index p : s.patch_a) {
+        EXPECT_EQ(Vec3(node3(a.x, p)), Vec3(node3(s.x, p))) << toString(version);
+        EXPECT_EQ(Vec3(node3(a.v, p)), Vec3(node3(s.v, p))) << toString(version);
+      }
+      if (version == SelfCollisionVersion::kRollback) {
+        EXPECT_GT(a.stats.unresolved, 0);
+        EXPECT_GT(countIntersectingTrianglePairs(s.tris, a.x), 0);
+      }
+    }
+  }
+  // Pinning the penetrating point of the crease scene instead: it stays where it was put.
+  const Scene c = creaseFailureScene();
+  std::vector<char> pin_q(static_cast<size_t>(c.tris.num_vertices), 0);
+  pin_q[static_cast<size_t>(c.q)] = 1;
+  for (auto version : {SelfCollisionVersion::kPointPath, SelfCollisionVersion::kEdge, SelfCollisionVersion::kRollback}) {
+    const Applied a = applyPass(c, versionOptions(version), pin_q);
+    EXPECT_EQ(Vec3(node3(a.x, c.q)), Vec3(node3(c.x, c.q)));
+    EXPECT_EQ(Vec3(node3(a.v, c.q)), Vec3(node3(c.v, c.q)));
+  }
+}
+
+TEST(PinnedParticles, MaskFromPinnedNodesAndSizeChecks) {
+  PinnedNodes pins;
+  pins.nodes = {1, 3};
+  pins.anchors = {Vec3::Zero(), Vec3::Zero()};
+  const auto m = pinnedMask(5, pins);
+  EXPECT_EQ(m, (std::vector<char>{0, 1, 0, 1, 0}));
+  const ClothTriangles t = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, 2, 2)));
+  EXPECT_THROW(SelfCollisionPass(t, std::vector<char>(3, 0)), std::invalid_argument);
+  SelfCollisionPass pass(t, {});
+  VecX x = VecX::Zero(6), v = VecX::Zero(6);
+  EXPECT_THROW(pass.apply(VecX::Zero(6), x, v), std::invalid_argument);
+  EXPECT_EQ(selfCollisionVersionFromString("v2"), SelfCollisionVersion::kEdge);
+  EXPECT_THROW(selfCollisionVersionFromString("v4"), std::invalid_argument);
+}
+
+// ---- obstacles ---------------------------------------------------------------------------------------
+
+TEST(Obstacles, FloorProjectsRemovesNormalVelocityAndAppliesFriction) {
+  ObstacleOptions o;
+  o.contact_distance = 1e-3;
+  o.friction = 0.5;
+  ObstaclePass pass(std::vector<char>(3, 0), o);
+  pass.addPlane(PlaneObstacle{Vec3::Zero(), Vec3(0, 0, 2), Vec3::Zero()});  // normal normalised
+  VecX x_old(9), x(9), v(9);
+  x_old << 0, 0, 0.1, 1, 0, 0.1, 2, 0, 0.1;
+  x << 0, 0, -0.01, 1, 0, 0.0005, 2, 0, 0.05;  // below, within contact distance, free
+  v << 2, 0, -2, 0.3, 0, -1, 0, 0, -1;
+  const VecX v_in = v;
+  EXPECT_EQ(pass.apply(x_old, x, v), 2);
+  EXPECT_NEAR(x[2], 1e-3, 1e-15);
+  EXPECT_NEAR(x[5], 1e-3, 1e-15);
+  EXPECT_EQ(x[8], 0.05);
+  EXPECT_EQ(v[2], 0);  // inward normal velocity removed
+  EXPECT_NEAR(v[0], 2 - 0.5 * 2, 1e-15);  // Coulomb: |v_t| reduced by mu |v_n|
+  EXPECT_NEAR(v[3], 0.0, 1e-15);          // ... but never reversed (0.3 - 0.5 < 0 -> 0)
+  EXPECT_EQ(v.segment<3>(6), v_in.segment<3>(6));
+  EXPECT_EQ(pass.countInside(x), 0);
+}
+
+TEST(Obstacles, TableBoxLeavesThroughTheEntryFace) {
+  ObstaclePass pass(std::vector<char>(2, 0), ObstacleOptions{1e-3, 0.0});
+  pass.addBox(BoxObstacle::axisAligned(Vec3(-0.25, -0.25, 0), Vec3(0.25, 0.25, 0.75)));
+  VecX x_old(6), x(6), v(6);
+  // Particle 0 fell into the table near its edge: nearer to the side face, but it entered from the
+  // top, so it goes back onto the top. Particle 1 was inside already: nearest face (the side).
+  x_old << 0.245, 0, 0.76, 0.24, 0.1, 0.5;
+  x << 0.249, 0, 0.70, 0.24, 0.1, 0.5;
+  v << 0.4, 0, -3, 0, 0, 0;
+  EXPECT_EQ(pass.apply(x_old, x, v), 2);
+  EXPECT_NEAR(x[2], 0.751, 1e-12);
+  EXPECT_NEAR(x[0], 0.249, 1e-12);
+  EXPECT_EQ(v[2], 0);
+  EXPECT_EQ(v[0], 0.4);  // frictionless
+  EXPECT_NEAR(x[3], 0.251, 1e-12);
+  EXPECT_EQ(pass.countInside(x), 0);
+}
+
+TEST(Obstacles, SphereAndRotatedJaw) {
+  ObstaclePass pass(std::vector<char>(2, 0), ObstacleOptions{0.0, 0.0});
+  pass.addSphere(SphereObstacle{Vec3(0, 0, 0), 0.1, Vec3::Zero()});
+  BoxObstacle jaw;
+  jaw.centre = Vec3(1, 0, 0);
+  jaw.half_extents = Vec3(0.1, 0.02, 0.05);
+  jaw.rotation = Eigen::AngleAxis<Real>(kPi / 4, Vec3::UnitZ()).toRotationMatrix();
+  jaw.velocity = Vec3(0, 0.5, 0);  // a closing jaw
+  pass.addBox(jaw);
+  VecX x_old(6), x(6), v(6);
+  x_old << 0.3, 0, 0, 1, 0, 0.2;
+  x << 0.05, 0, 0, 1.01, 0.005, 0;  // inside the sphere; inside the jaw
+  v << -1, 0, 0, 0, 0, 0;
+  EXPECT_EQ(pass.apply(x_old, x, v), 2);
+  EXPECT_NEAR(node3(x, 0).norm(), 0.1, 1e-12);
+  EXPECT_NEAR(v[0], 0, 1e-15);
+  EXPECT_FALSE(jaw.contains(node3(x, 1), -1e-12));
+  EXPECT_EQ(pass.countInside(x, 1e-12), 0);
+  // The jaw entered from above (x_old above it): projected onto its top face.
+  EXPECT_NEAR(x[5], 0.05, 1e-12);
+  EXPECT_THROW(pass.addSphere(SphereObstacle{Vec3::Zero(), -1, Vec3::Zero()}), std::invalid_argument);
+}
+
+TEST(Obstacles, PinnedParticlesAreNeverMovedAndChainsSumEvents) {
+  std::vector<char> pinned = {1, 0};
+  ObstaclePass floor(pinned, ObstacleOptions{});
+  floor.addPlane(PlaneObstacle{});
+  VecX x_old(6), x(6), v(6);
+  x_old << 0, 0, 0.1, 1, 0, 0.1;
+  x << 0, 0, -0.1, 1, 0, -0.1;
+  v << 0, 0, -1, 0, 0, -1;
+  const VecX x_in = x, v_in = v;
+  SelfCollisionPass self(ClothTriangles::fromTopology(topologyFromCells({{0, 0}, {0, 1}})), pinned);
+  PostStepPassChain chain({&floor, &self});
+  EXPECT_EQ(chain.apply(x_old, x, v), 1);
+  EXPECT_EQ(x.head<3>(), x_in.head<3>());
+  EXPECT_EQ(v.head<3>(), v_in.head<3>());
+  EXPECT_GT(x[5], 0);
+}
+
+// ---- drape scenes -------------------------------------------------------------------------------------
+
+// The thesis self-collision experiment (section 5.4.3): the 30x30 cm cotton square held at its centre.
+DrapeSceneSpec squareSpec(Real spacing) {
+  DrapeSceneSpec s;
+  s.textile = presetTextile("square");
+  s.spacing = spacing;
+  s.hold = {HoldPoint{"centre", Vec2::Zero()}};
+  s.hold_position = Vec3(0, 0, 1.0);
+  s.model_options.settle_damping = 4.0;
+  s.model_options.jacobian = JacobianMode::kDefiniteFix;
+  s.settings.integrator = IntegratorType::kSemiImplicitEuler;
+  s.settings.policy = StepPolicy::kFixed;
+  s.settings.dt = 1e-3;
+  s.settings.max_time = 8.0;
+  return s;
+}
+
+struct DrapeOutcome {
+  RunResult result;
+  VecX x;
+  long pairs = 0;
+  double seconds = 0;
+};
+
+DrapeOutcome runSquare(bool collisions, SelfCollisionStats* stats = nullptr) {
+  // One thread: on these small meshes parallel regions cost more than they save (a lot more on a
+  // busy machine); the results do not depend on the thread count (tested separately).
+  ThreadGuard guard;
+  setThreads(1);
+  const DrapeSceneSpec spec = squareSpec(0.025);
+  DrapeScene scene = buildDrapeScene(spec);
+  const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
+  const ClothTriangles tris = ClothTriangles::fromTopology(pm->topology());
+  SelfCollisionPass pass(tris, pinnedMask(pm->numNodes(), scene.pins));
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  if (collisions) sim.setPostStepPass(&pass);
+  const auto t0 = std::chrono::steady_clock::now();
+  DrapeOutcome out;
+  out.result = sim.run();
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  out.x = sim.positions();
+  out.pairs = countIntersectingTrianglePairs(tris, out.x);
+  if (stats) *stats = pass.totalStats();
+  std::printf("[ square 25 mm, %s ] %s t=%.2f s, %ld steps, %.2f s wall, %ld intersecting pairs, %ld events, "
+              "collision %.0f ms of %.0f ms stepping\n",
+              collisions ? "v3" : "no collision handling", out.result.rest_reached ? "rest" : "no rest",
+              out.result.sim_time, out.result.steps, out.seconds, out.pairs, out.result.post_step_events,
+              out.result.post_step_ms, out.result.step_ms);
+  return out;
+}
+
+TEST(DrapeScenes, SquareHeldAtCentreSelfIntersectsWithoutHandling) {
+  const DrapeOutcome off = runSquare(false);
+  ASSERT_FALSE(off.result.diverged) << off.result.divergence_reason;
+  EXPECT_TRUE(off.result.rest_reached);
+  EXPECT_GT(off.pairs, 0);  // the thesis's observation: penetration without collision handling
+}
+
+TEST(DrapeScenes, SquareHeldAtCentreHangsToRestWithoutIntersectionsUnderV3) {
+  SelfCollisionStats stats;
+  const DrapeOutcome on = runSquare(true, &stats);
+  ASSERT_FALSE(on.result.diverged) << on.result.divergence_reason;
+  EXPECT_TRUE(on.result.rest_reached);
+  EXPECT_EQ(on.pairs, 0);
+  EXPECT_GT(on.result.post_step_events, 0);
+  EXPECT_EQ(stats.unresolved, 0);
+  std::printf("[ square 25 mm, v3 ] thesis rollbacks %ld, fallback rollbacks %ld, passes %d\n", stats.thesis_events,
+              stats.fallback_events, stats.passes);
+}
+
+TEST(DrapeScenes, SquareRunIsIndependentOfTheThreadCount) {
+  ThreadGuard guard;
+  const DrapeSceneSpec base = squareSpec(0.03);
+  std::vector<VecX> finals;
+  for (int threads : {1, 3}) {
+    setThreads(threads);
+    DrapeSceneSpec spec = base;
+    spec.settings.max_time = 0.8;
+    spec.settings.dt = 2e-3;
+    DrapeScene scene = buildDrapeScene(spec);
+    const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
+    SelfCollisionPass pass(ClothTriangles::fromTopology(pm->topology()), pinnedMask(pm->numNodes(), scene.pins));
+    DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+    sim.setPostStepPass(&pass);
+    sim.run();
+    finals.push_back(sim.positions());
+  }
+  EXPECT_TRUE(finals[0] == finals[1]);
+}
+
+// The thesis validation scene (section 5.4.1): the 100x100 cm tablecloth fixed on a 50x50 cm area, here
+// with the table as a box obstacle just below the pinned region, plus v3.
+TEST(DrapeScenes, TableclothOnATableStaysOutOfTheTable) {
+  ThreadGuard guard;
+  setThreads(1);  // see runSquare()
+  DrapeSceneSpec spec;
+  spec.textile = presetTextile("tablecloth");
+  spec.spacing = 0.04;
+  spec.pinned_regions = {Eigen::Matrix<Real, 4, 1>(0.25, 0.25, 0.75, 0.75)};
+  spec.hold_position = Vec3(0, 0, 1.0);  // the region's centre
+  spec.model_options.settle_damping = 4.0;
+  spec.model_options.jacobian = JacobianMode::kDefiniteFix;
+  spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
+  spec.settings.policy = StepPolicy::kFixed;
+  spec.settings.dt = 2e-3;
+  spec.settings.max_time = 3.0;
+  DrapeScene scene = buildDrapeScene(spec);
+  const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
+  const Index n = pm->numNodes();
+
+  ObstaclePass table(n, scene.pins, ObstacleOptions{1e-3, 0.3});
+  // Table top 2 mm below the pinned cloth; the table is as large as the pinned region.
+  const BoxObstacle box = BoxObstacle::axisAligned(Vec3(-0.25, -0.25, 0.0), Vec3(0.25, 0.25, 0.998));
+  table.addBox(box);
+  SelfCollisionPass self(pm->topology(), scene.pins);
+  PostStepPassChain chain({&table, &self});
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  sim.setPostStepPass(&chain);
+  const auto t0 = std::chrono::steady_clock::now();
+  const RunResult r = sim.run();
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_FALSE(r.diverged) << r.divergence_reason;
+  const VecX& x = sim.positions();
+  long inside = 0;
+  for (Index p = 0; p < n; ++p) inside += box.contains(node3(x, p), -1e-9) ? 1 : 0;
+  EXPECT_EQ(inside, 0);
+  EXPECT_EQ(table.countInside(x), 0);
+  // The cloth does hang down over the table edges.
+  Real lowest = 1.0;
+  for (Index p = 0; p < n; ++p) lowest = std::min(lowest, x[3 * p + 2]);
+  EXPECT_LT(lowest, 0.85);
+  // Pinned particles never moved.
+  for (size_t k = 0; k < scene.pins.nodes.size(); ++k)
+    EXPECT_EQ(Vec3(node3(x, scene.pins.nodes[k])), scene.pins.anchors[k]);
+  EXPECT_EQ(countIntersectingTrianglePairs(self.triangles(), x), 0);
+  std::printf("[ tablecloth 40 mm on a table ] %s t=%.2f s, %ld steps, %.2f s wall, %ld events, lowest z %.3f m\n",
+              r.rest_reached ? "rest" : "no rest", r.sim_time, r.steps, secs, r.post_step_events, lowest);
+}
+
+}  // namespace
+}  // namespace textile_handling
