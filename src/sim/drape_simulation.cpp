@@ -253,7 +253,7 @@ RunResult DrapeSimulation::run(Real until) {
 
 namespace {
 constexpr const char* kStateMagic = "textile_handling_drape_state";
-constexpr int kStateVersion = 1;
+constexpr int kStateVersion = 2;  // 2 added solver_state (CG warm start)
 
 void writeVec(std::ostream& os, const char* key, const VecX& v) {
   os << key << ' ' << v.size();
@@ -315,6 +315,8 @@ void DrapeSimulation::save(const std::string& path) const {
   writeVec(os, "v", v_);
   const std::vector<Real> internal = model_.internalState();
   writeVec(os, "model_state", Eigen::Map<const VecX>(internal.data(), static_cast<Index>(internal.size())));
+  const std::vector<Real> solver = integrator_->solverState();
+  writeVec(os, "solver_state", Eigen::Map<const VecX>(solver.data(), static_cast<Index>(solver.size())));
   os << "end\n";
   const std::string tmp = path + ".tmp";
   {
@@ -333,7 +335,7 @@ void DrapeSimulation::load(const std::string& path) {
   f >> magic;
   if (magic != kStateMagic) throw std::runtime_error("drape state: " + path + " is not a drape state file");
   const Real version = parseReal(f, "version");
-  if (version != kStateVersion) throw std::runtime_error("drape state: unsupported version in " + path);
+  if (version != 1 && version != kStateVersion) throw std::runtime_error("drape state: unsupported version in " + path);
   std::string model_name;
   expectKey(f, "model");
   f >> model_name;
@@ -388,6 +390,16 @@ void DrapeSimulation::load(const std::string& path) {
   if (!(ns >= 0 && ns < 1e9)) throw std::runtime_error("drape state: bad model_state size");
   std::vector<Real> internal(static_cast<size_t>(ns));
   for (auto& r : internal) r = parseReal(f, "model_state");
+  std::vector<Real> solver_state;
+  if (version >= 2) {
+    expectKey(f, "solver_state");
+    const Real nss = parseReal(f, "solver_state size");
+    if (!(nss >= 0 && nss < 1e9)) throw std::runtime_error("drape state: bad solver_state size");
+    solver_state.resize(static_cast<size_t>(nss));
+    for (auto& r : solver_state) r = parseReal(f, "solver_state");
+    for (Real r : solver_state)
+      if (!std::isfinite(r)) throw std::runtime_error("drape state: non-finite solver_state in " + path);
+  }
   expectKey(f, "end");
   if (!x.allFinite() || !v.allFinite() || !std::isfinite(t) || !(dt > 0) || !std::isfinite(dt))
     throw std::runtime_error("drape state: non-finite values in " + path);
@@ -404,6 +416,8 @@ void DrapeSimulation::load(const std::string& path) {
   if (!std::isfinite(pn) || !std::isfinite(pg) || !std::isfinite(rs))
     throw std::runtime_error("drape state: non-finite step-controller or rest-timer values in " + path);
   if (!model_.setInternalState(internal)) throw std::runtime_error("drape state: model rejected its internal state");
+  if (!integrator_->setSolverState(solver_state))
+    throw std::runtime_error("drape state: solver state does not fit this integrator/model");
   // Everything parsed: commit.
   t_ = t;
   dt_ = dt;

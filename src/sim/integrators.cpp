@@ -1,8 +1,12 @@
 #include "textile_handling/sim/integrators.h"
 
 #include <Eigen/LU>
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <memory>
 #include <stdexcept>
 
 namespace textile_handling {
@@ -21,6 +25,34 @@ IntegratorType integratorFromString(const std::string& s) {
   if (s == "semi_implicit") return IntegratorType::kSemiImplicitEuler;
   if (s == "block_diagonal") return IntegratorType::kBlockDiagonalEuler;
   throw std::invalid_argument("unknown integrator '" + s + "' (expected rk4, semi_implicit or block_diagonal)");
+}
+
+std::string toString(LinearSolverKind k) {
+  switch (k) {
+    case LinearSolverKind::kCG: return "cg";
+    case LinearSolverKind::kDirect: return "direct";
+  }
+  return "unknown";
+}
+
+LinearSolverKind linearSolverFromString(const std::string& s) {
+  if (s == "cg") return LinearSolverKind::kCG;
+  if (s == "direct") return LinearSolverKind::kDirect;
+  throw std::invalid_argument("unknown linear solver '" + s + "' (expected cg or direct)");
+}
+
+std::string toString(PreconditionerKind k) {
+  switch (k) {
+    case PreconditionerKind::kBlockJacobi: return "block_jacobi";
+    case PreconditionerKind::kTwoLevel: return "two_level";
+  }
+  return "unknown";
+}
+
+PreconditionerKind preconditionerFromString(const std::string& s) {
+  if (s == "block_jacobi") return PreconditionerKind::kBlockJacobi;
+  if (s == "two_level") return PreconditionerKind::kTwoLevel;
+  throw std::invalid_argument("unknown preconditioner '" + s + "' (expected block_jacobi or two_level)");
 }
 
 Vec3 PinnedNodes::offset(Real t) const {
@@ -45,10 +77,12 @@ Vec3 PinnedNodes::offsetVelocity(Real t) const {
 
 Real deterministicDot(const VecX& a, const VecX& b) {
   // Fixed chunks summed in order: the same result for any thread count.
+  // Small vectors are summed on one thread (same chunks, same order, same result): a parallel
+  // region costs more than the work, and much more when other processes keep the cores busy.
   constexpr Index kChunks = 64;
   const Index n = a.size();
   Real partial[kChunks];
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n > (1 << 16))
   for (Index c = 0; c < kChunks; ++c) {
     const Index lo = n * c / kChunks, hi = n * (c + 1) / kChunks;
     partial[c] = a.segment(lo, hi - lo).dot(b.segment(lo, hi - lo));
@@ -158,94 +192,486 @@ class ImplicitEulerBase : public Integrator {
   VecX f_, kv_, rhs_;
 };
 
+using Clock = std::chrono::steady_clock;
+Real msSince(Clock::time_point t0) { return std::chrono::duration<Real, std::milli>(Clock::now() - t0).count(); }
+
+// Sparse LDL^T of a BSR matrix. DOFs marked in `dof_pinned` get identity rows and columns, so the
+// scalar pattern (and the fill-reducing ordering, computed once) never changes.
+class DirectSolver {
+ public:
+  using SpMat = Eigen::SparseMatrix<Real, Eigen::ColMajor, int>;
+
+  // Builds the lower-triangular scalar pattern of a BSR pattern and the map to the BSR values.
+  void setPattern(const BlockPattern& p) {
+    const int b = p.blockSize();
+    const Index dofs = p.numNodes() * b;
+    std::vector<Eigen::Triplet<Real, int>> tr;
+    const auto& rs = p.rowStart();
+    const auto& col = p.column();
+    for (Index i = 0; i < p.numNodes(); ++i)
+      for (Index k = rs[i]; k < rs[i + 1]; ++k)
+        for (int r = 0; r < b; ++r)
+          for (int c = 0; c < b; ++c) {
+            const Index R = i * b + r, C = col[k] * b + c;
+            if (R >= C) tr.emplace_back(R, C, static_cast<Real>(static_cast<size_t>(k) * b * b + r * b + c + 1));
+          }
+    lower_.resize(dofs, dofs);
+    lower_.setFromTriplets(tr.begin(), tr.end());
+    lower_.makeCompressed();
+    map_.resize(lower_.nonZeros());
+    row_of_.resize(lower_.nonZeros());
+    col_of_.resize(lower_.nonZeros());
+    for (Index c = 0; c < dofs; ++c)
+      for (int k = lower_.outerIndexPtr()[c]; k < lower_.outerIndexPtr()[c + 1]; ++k) {
+        map_[k] = static_cast<size_t>(lower_.valuePtr()[k]) - 1;
+        row_of_[k] = lower_.innerIndexPtr()[k];
+        col_of_[k] = c;
+      }
+    analysed_ = false;
+  }
+
+  // Copies the values (pinned DOFs decoupled; `dof_pinned` empty = none) and factorises.
+  bool factorize(const BlockSparseMatrix& A, const std::vector<char>& dof_pinned) {
+    const auto& v = A.values();
+    Real* out = lower_.valuePtr();
+    const Index nnz = static_cast<Index>(map_.size());
+    const bool any_pinned = !dof_pinned.empty();
+#pragma omp parallel for schedule(static)
+    for (Index k = 0; k < nnz; ++k) {
+      const Index r = row_of_[k], c = col_of_[k];
+      if (any_pinned && (dof_pinned[r] || dof_pinned[c])) out[k] = r == c ? 1.0 : 0.0;
+      else out[k] = v[map_[k]];
+    }
+    if (!analysed_) {
+      ldlt_.analyzePattern(lower_);
+      analysed_ = true;
+    }
+    ldlt_.factorize(lower_);
+    if (ldlt_.info() != Eigen::Success || !ldlt_.vectorD().allFinite()) return false;
+    negative_pivots_ = static_cast<Index>((ldlt_.vectorD().array() <= 0).count());
+    return true;
+  }
+  /// Non-positive pivots of the last factorisation (0 = the matrix is positive definite).
+  Index negativePivots() const { return negative_pivots_; }
+  void solve(const VecX& b, VecX& x) const { x = ldlt_.solve(b); }
+
+ private:
+  SpMat lower_;
+  std::vector<size_t> map_;
+  std::vector<Index> row_of_, col_of_;
+  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
+  bool analysed_ = false;
+  Index negative_pivots_ = 0;
+};
+
+// Block-Jacobi: inverses of the diagonal blocks of the free nodes (pinned nodes give zero).
+class BlockJacobi {
+ public:
+  bool update(const BlockSparseMatrix& A, const std::vector<char>& node_pinned) {
+    const BlockPattern& p = A.pattern();
+    const Index n = p.numNodes();
+    b_ = p.blockSize();
+    const int bb = b_ * b_;
+    inv_.assign(static_cast<size_t>(n) * bb, 0.0);
+    pinned_ = &node_pinned;
+    bool ok = true;
+#pragma omp parallel for schedule(static) reduction(&& : ok)
+    for (Index i = 0; i < n; ++i) {
+      if (node_pinned[i]) continue;
+      const Real* blk = A.block(p.diagonal(i));
+      Real* out = inv_.data() + static_cast<size_t>(i) * bb;
+      if (b_ == 3) {
+        const Mat3 a = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(blk);
+        const Real det = a.determinant();
+        if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) {
+          ok = false;
+          continue;
+        }
+        Eigen::Map<Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>> o(out);
+        o = a.inverse();
+      } else {
+        Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> a(blk, b_, b_);
+        Eigen::FullPivLU<Eigen::MatrixXd> lu(a);
+        if (!lu.isInvertible()) {
+          ok = false;
+          continue;
+        }
+        Eigen::Map<Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> o(out, b_, b_);
+        o = lu.inverse();
+      }
+    }
+    return ok;
+  }
+  // z = weight * D^-1 r (add = false) or z += weight * D^-1 r (add = true).
+  void apply(const VecX& r, VecX& z, Real weight, bool add) const {
+    const Index n = static_cast<Index>((*pinned_).size());
+    const int bb = b_ * b_;
+    if (!add) z.setZero(r.size());
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < n; ++i) {
+      if ((*pinned_)[i]) continue;
+      const Real* m = inv_.data() + static_cast<size_t>(i) * bb;
+      if (b_ == 3) {
+        Eigen::Map<Vec3>(z.data() + 3 * i) +=
+            weight * (Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m) * Eigen::Map<const Vec3>(r.data() + 3 * i));
+      } else {
+        z.segment(i * b_, b_) += weight * (Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(m, b_, b_) *
+                                           r.segment(i * b_, b_));
+      }
+    }
+  }
+
+ private:
+  int b_ = 3;
+  std::vector<Real> inv_;
+  const std::vector<char>* pinned_ = nullptr;
+};
+
+// Two-level preconditioner: block-Jacobi smoothing on the fine level plus an exact solve of the
+// Galerkin coarse system P^T A P, where P is the piecewise-constant (unsmoothed) aggregation
+// prolongator. Aggregates are built greedily from the block pattern alone (a root node and its
+// not yet aggregated neighbours), once per pattern and pinned set; the coarse pattern and its
+// fill-reducing ordering are therefore fixed, and only values change from step to step.
+class TwoLevel {
+ public:
+  bool matches(const BlockPattern* p, const std::vector<char>& node_pinned) const {
+    return pattern_ == p && pinned_ == node_pinned;
+  }
+
+  void setup(const BlockPattern& p, const std::vector<char>& node_pinned) {
+    pattern_ = &p;
+    pinned_ = node_pinned;
+    b_ = p.blockSize();
+    const Index n = p.numNodes();
+    const auto& rs = p.rowStart();
+    const auto& col = p.column();
+    agg_.assign(n, -1);
+    Index na = 0;
+    // Neighbour lists of the block pattern (the node itself included).
+    std::vector<std::vector<Index>> nb(n);
+    for (Index i = 0; i < n; ++i) nb[i].assign(col.begin() + rs[i], col.begin() + rs[i + 1]);
+    // Phase 1: a free node whose free neighbours are all unaggregated roots a new aggregate.
+    for (Index i = 0; i < n; ++i) {
+      if (node_pinned[i] || agg_[i] >= 0) continue;
+      bool free_nbhd = true;
+      for (Index j : nb[i])
+        if (!node_pinned[j] && agg_[j] >= 0) free_nbhd = false;
+      if (!free_nbhd) continue;
+      for (Index j : nb[i])
+        if (!node_pinned[j]) agg_[j] = na;
+      ++na;
+    }
+    // Phase 2: leftovers join the aggregate they share most couplings with (or start their own).
+    std::vector<Index> phase1 = agg_;
+    for (Index i = 0; i < n; ++i) {
+      if (node_pinned[i] || agg_[i] >= 0) continue;
+      Index best = -1, best_count = 0;
+      for (Index j0 : nb[i]) {
+        const Index a = phase1[j0];
+        if (a < 0) continue;
+        Index count = 0;
+        for (Index j1 : nb[i]) count += phase1[j1] == a;
+        if (count > best_count || (count == best_count && a < best)) {
+          best = a;
+          best_count = count;
+        }
+      }
+      agg_[i] = best >= 0 ? best : na++;
+    }
+    num_agg_ = na;
+    members_start_.assign(na + 1, 0);
+    for (Index i = 0; i < n; ++i)
+      if (agg_[i] >= 0) ++members_start_[agg_[i] + 1];
+    for (Index a = 0; a < na; ++a) members_start_[a + 1] += members_start_[a];
+    members_.assign(members_start_.back(), 0);
+    {
+      std::vector<Index> fill(members_start_.begin(), members_start_.end() - 1);
+      for (Index i = 0; i < n; ++i)
+        if (agg_[i] >= 0) members_[fill[agg_[i]]++] = i;
+    }
+    // Coarse pattern and the (fine slot -> coarse slot) lists, grouped by coarse row.
+    std::vector<std::pair<Index, Index>> couplings;
+    for (Index i = 0; i < n; ++i) {
+      if (agg_[i] < 0) continue;
+      for (Index k = rs[i]; k < rs[i + 1]; ++k) {
+        const Index j = col[k];
+        if (agg_[j] >= 0 && agg_[j] != agg_[i]) couplings.emplace_back(agg_[i], agg_[j]);
+      }
+    }
+    coarse_pattern_ = std::make_unique<BlockPattern>(na, b_, couplings);
+    coarse_ = BlockSparseMatrix(coarse_pattern_.get());
+    gather_start_.assign(na + 1, 0);
+    gather_.clear();
+    for (Index a = 0; a < na; ++a) {
+      for (Index m = members_start_[a]; m < members_start_[a + 1]; ++m) {
+        const Index i = members_[m];
+        for (Index k = rs[i]; k < rs[i + 1]; ++k) {
+          const Index j = col[k];
+          if (agg_[j] < 0) continue;
+          gather_.emplace_back(k, coarse_pattern_->find(a, agg_[j]));
+        }
+      }
+      gather_start_[a + 1] = static_cast<Index>(gather_.size());
+    }
+    solver_.setPattern(*coarse_pattern_);
+  }
+
+  // Assembles and factorises the coarse matrix P^T A P.
+  bool update(const BlockSparseMatrix& A) {
+    const int bb = b_ * b_;
+    const auto& rs = coarse_pattern_->rowStart();
+    const auto& fine = A.values();
+#pragma omp parallel for schedule(static)
+    for (Index a = 0; a < num_agg_; ++a) {
+      std::fill(coarse_.block(rs[a]), coarse_.block(rs[a + 1]), 0.0);
+      for (Index g = gather_start_[a]; g < gather_start_[a + 1]; ++g) {
+        const Real* src = fine.data() + static_cast<size_t>(gather_[g].first) * bb;
+        Real* dst = coarse_.block(gather_[g].second);
+        for (int e = 0; e < bb; ++e) dst[e] += src[e];
+      }
+    }
+    if (!solver_.factorize(coarse_, {})) return false;
+    return solver_.negativePivots() == 0;
+  }
+
+  // z += P Ac^-1 P^T r.
+  void addCoarseCorrection(const VecX& r, VecX& z) {
+    rc_.resize(static_cast<Index>(num_agg_) * b_);
+#pragma omp parallel for schedule(static)
+    for (Index a = 0; a < num_agg_; ++a) {
+      auto acc = rc_.segment(a * b_, b_);
+      acc.setZero();
+      for (Index m = members_start_[a]; m < members_start_[a + 1]; ++m) acc += r.segment(members_[m] * b_, b_);
+    }
+    solver_.solve(rc_, zc_);
+    const Index n = static_cast<Index>(agg_.size());
+#pragma omp parallel for schedule(static)
+    for (Index i = 0; i < n; ++i)
+      if (agg_[i] >= 0) z.segment(i * b_, b_) += zc_.segment(agg_[i] * b_, b_);
+  }
+
+  Index numAggregates() const { return num_agg_; }
+
+ private:
+  const BlockPattern* pattern_ = nullptr;
+  std::vector<char> pinned_;
+  int b_ = 3;
+  std::vector<Index> agg_;
+  Index num_agg_ = 0;
+  std::vector<Index> members_start_, members_;
+  std::unique_ptr<BlockPattern> coarse_pattern_;
+  BlockSparseMatrix coarse_;
+  std::vector<Index> gather_start_;
+  std::vector<std::pair<Index, Index>> gather_;
+  DirectSolver solver_;
+  VecX rc_, zc_;
+};
+
 class SemiImplicitEuler : public ImplicitEulerBase {
  public:
   explicit SemiImplicitEuler(SolverSettings s) : ImplicitEulerBase(s) {}
   IntegratorType type() const override { return IntegratorType::kSemiImplicitEuler; }
 
+  std::vector<Real> solverState() const override {
+    if (!solver_.warm_start || prev_y_.size() == 0) return {};
+    std::vector<Real> s(1 + prev_y_.size());
+    s[0] = prev_h_;
+    std::copy(prev_y_.data(), prev_y_.data() + prev_y_.size(), s.begin() + 1);
+    return s;
+  }
+  bool setSolverState(const std::vector<Real>& state) override {
+    if (state.empty()) {
+      prev_y_.resize(0);
+      prev_h_ = 0;
+      return true;
+    }
+    if (!(state[0] > 0) || !std::all_of(state.begin(), state.end(), [](Real r) { return std::isfinite(r); }))
+      return false;
+    prev_h_ = state[0];
+    prev_y_ = Eigen::Map<const VecX>(state.data() + 1, static_cast<Index>(state.size()) - 1);
+    return true;
+  }
+
   StepOutcome step(ClothModel& model, const PinnedNodes& pins, const VecX& x, const VecX& v, Real t, Real h,
                    VecX& x_new, VecX& v_new) override {
     StepOutcome out;
+    const auto t_asm = Clock::now();
+    const bool new_model = model_ != &model;
     if (!assemble(model, x, v, h, &out)) return out;
     const Index n = model.numNodes();
     const int b = model.dofsPerNode();
     const Index dofs = n * b;
-    const auto mask = pinnedMask(model, pins);
-
-    // Block-Jacobi preconditioner.
-    precond_.resize(n);
-    for (Index i = 0; i < n; ++i) {
-      if (mask[i]) continue;
-      if (!invertDiagonal(i, &precond_[i])) {
-        out.ok = false;
-        out.failure = "singular diagonal block in implicit system";
-        return out;
-      }
+    mask_ = pinnedMask(model, pins);
+    if (new_model) {
+      if (prev_y_.size() != dofs) prev_y_.resize(0);  // keeps a restored solverState() of the right size
+      if (solver_.kind == LinearSolverKind::kDirect) direct_.setPattern(model.jacobianPattern());
     }
-    auto filter = [&](VecX& y) {
-      for (Index p : pins.nodes) y.segment(p * b, b).setZero();
-    };
-    auto applyPrecond = [&](const VecX& r, VecX& z) {
-      z.resize(dofs);
-#pragma omp parallel for schedule(static)
-      for (Index i = 0; i < n; ++i) {
-        if (mask[i]) {
-          z.segment(i * b, b).setZero();
-        } else {
-          z.segment(i * b, b) = precond_[i] * r.segment(i * b, b);
-        }
-      }
-    };
 
+    // Prescribed velocity change of the pinned DOFs, moved to the right-hand side:
+    // A_ff y = rhs_f - A_fp dv_p, y = 0 on pinned DOFs.
     VecX dv = VecX::Zero(dofs);
     pinnedVelocityChange(model, pins, x, v, t, h, dv);
-    VecX r(dofs), z(dofs), p(dofs), Ap(dofs);
-    system_.multiply(dv, Ap);
-    r = rhs_ - Ap;
-    filter(r);
-    VecX rhs_free = rhs_;
-    filter(rhs_free);
-    const Real stop = solver_.relative_tolerance * std::max(std::sqrt(deterministicDot(rhs_free, rhs_free)), 1e-300);
-    applyPrecond(r, z);
-    p = z;
-    Real rz = deterministicDot(r, z);
-    int it = 0;
-    bool converged = std::sqrt(deterministicDot(r, r)) <= stop;
-    while (!converged && it < solver_.max_iterations) {
-      system_.multiply(p, Ap);
-      filter(Ap);
-      const Real pAp = deterministicDot(p, Ap);
-      if (!(pAp > 0)) {
+    system_.multiply(dv, Ap_);
+    VecX bf = rhs_ - Ap_;
+    filter(bf);
+    out.assembly_ms = msSince(t_asm);
+
+    const auto t_solve = Clock::now();
+    VecX y = VecX::Zero(dofs);
+    if (solver_.kind == LinearSolverKind::kDirect) {
+      dof_pinned_.assign(dofs, 0);
+      for (Index i = 0; i < n; ++i)
+        if (mask_[i])
+          for (int r = 0; r < b; ++r) dof_pinned_[i * b + r] = 1;
+      if (!direct_.factorize(system_, dof_pinned_)) {
         out.ok = false;
-        out.failure = "implicit system not positive definite (negative curvature in CG)";
-        out.solver_iterations = it;
+        out.failure = "sparse factorisation of the implicit system failed";
         return out;
       }
-      const Real alpha = rz / pAp;
-      dv += alpha * p;
-      r -= alpha * Ap;
-      ++it;
-      if (std::sqrt(deterministicDot(r, r)) <= stop) {
-        converged = true;
-        break;
-      }
-      applyPrecond(r, z);
-      const Real rz_new = deterministicDot(r, z);
-      p = z + (rz_new / rz) * p;
-      rz = rz_new;
+      direct_.solve(bf, y);
+      filter(y);
+      out.solver_iterations = 1;
+    } else {
+      if (!solvePCG(bf, h, y, &out)) return out;
     }
-    out.solver_iterations = it;
-    if (!converged) {
-      out.ok = false;
-      out.failure = "conjugate gradients did not converge in " + std::to_string(it) + " iterations";
-      return out;
-    }
+    out.solve_ms = msSince(t_solve);
+    prev_y_ = y;
+    prev_h_ = h;
+    dv += y;
     finish(pins, x, v, t, h, dv, model, x_new, v_new, &out);
     return out;
   }
 
  private:
-  std::vector<Eigen::MatrixXd> precond_;
+  void filter(VecX& y) const {
+    const int b = system_.pattern().blockSize();
+    const Index n = static_cast<Index>(mask_.size());
+    for (Index i = 0; i < n; ++i)
+      if (mask_[i]) y.segment(i * b, b).setZero();
+  }
+  // out = A_ff in (pinned rows zeroed; `in` is zero on pinned DOFs).
+  void applyA(const VecX& in, VecX& out) const {
+    system_.multiply(in, out);
+    filter(out);
+  }
+  // z = M^-1 r for the configured preconditioner.
+  void precondition(const VecX& r, VecX& z) {
+    if (!use_coarse_) {
+      jacobi_.apply(r, z, 1.0, false);
+      return;
+    }
+    const int nu = additive_only_ ? 0 : solver_.smoothing_steps;
+    const Real w = solver_.smoothing_weight;
+    if (nu <= 0) {  // additive: D^-1 r + P Ac^-1 P^T r
+      jacobi_.apply(r, z, 1.0, false);
+      two_level_.addCoarseCorrection(r, z);
+      return;
+    }
+    // Symmetric V(nu, nu) cycle with damped block-Jacobi smoothing.
+    jacobi_.apply(r, z, w, false);
+    for (int s = 1; s < nu; ++s) {
+      applyA(z, t_);
+      t_ = r - t_;
+      jacobi_.apply(t_, z, w, true);
+    }
+    applyA(z, t_);
+    t_ = r - t_;
+    two_level_.addCoarseCorrection(t_, z);
+    for (int s = 0; s < nu; ++s) {
+      applyA(z, t_);
+      t_ = r - t_;
+      jacobi_.apply(t_, z, w, true);
+    }
+  }
+
+  bool solvePCG(const VecX& bf, Real h, VecX& y, StepOutcome* out) {
+    const Index dofs = bf.size();
+    if (!jacobi_.update(system_, mask_)) {
+      out->ok = false;
+      out->failure = "singular diagonal block in implicit system";
+      return false;
+    }
+    // The coarse level needs a positive definite Galerkin matrix; when it is not (possible with an
+    // indefinite exact Jacobian), this step falls back to block-Jacobi, and CG decides.
+    use_coarse_ = false;
+    if (solver_.preconditioner == PreconditionerKind::kTwoLevel) {
+      if (!two_level_.matches(&system_.pattern(), mask_)) two_level_.setup(system_.pattern(), mask_);
+      use_coarse_ = two_level_.update(system_);
+    }
+    const Real bnorm = std::sqrt(deterministicDot(bf, bf));
+    const Real stop = solver_.relative_tolerance * std::max(bnorm, 1e-300);
+    VecX r = bf;
+    y.setZero(dofs);
+    if (solver_.warm_start && prev_y_.size() == dofs && prev_h_ > 0) {
+      // Guess g = previous solution scaled by h / h_prev, then by the A-norm optimal factor.
+      VecX g = prev_y_ * (h / prev_h_);
+      filter(g);
+      applyA(g, Ap_);
+      const Real gAg = deterministicDot(g, Ap_);
+      if (gAg > 0) {
+        const Real s = deterministicDot(g, bf) / gAg;
+        y = s * g;
+        r = bf - s * Ap_;
+      }
+    }
+    int it = 0;
+    Real rnorm = std::sqrt(deterministicDot(r, r));
+    bool converged = rnorm <= stop;
+    additive_only_ = false;
+    if (!converged) {
+      precondition(r, z_);
+      p_ = z_;
+      Real rz = deterministicDot(r, z_);
+      while (it < solver_.max_iterations) {
+        if (!(rz > 0) && use_coarse_ && !additive_only_ && solver_.smoothing_steps > 0) {
+          // The smoothed cycle is positive definite only if smoothing_weight * lambda_max(D^-1 A) < 2;
+          // if it is not, restart the search directions with the additive two-level preconditioner.
+          additive_only_ = true;
+          precondition(r, z_);
+          p_ = z_;
+          rz = deterministicDot(r, z_);
+        }
+        applyA(p_, Ap_);
+        const Real pAp = deterministicDot(p_, Ap_);
+        if (!(pAp > 0) || !(rz > 0)) {
+          out->ok = false;
+          out->failure = "implicit system not positive definite (negative curvature in CG)";
+          out->solver_iterations = it;
+          return false;
+        }
+        const Real alpha = rz / pAp;
+        y += alpha * p_;
+        r -= alpha * Ap_;
+        ++it;
+        rnorm = std::sqrt(deterministicDot(r, r));
+        if (rnorm <= stop) {
+          converged = true;
+          break;
+        }
+        precondition(r, z_);
+        const Real rz_new = deterministicDot(r, z_);
+        p_ = z_ + (rz_new / rz) * p_;
+        rz = rz_new;
+      }
+    }
+    out->solver_iterations = it;
+    if (!converged && !(solver_.accept_tolerance > 0 && rnorm <= solver_.accept_tolerance * bnorm)) {
+      out->ok = false;
+      out->failure = "conjugate gradients did not converge in " + std::to_string(it) + " iterations";
+      return false;
+    }
+    return true;
+  }
+
+  std::vector<char> mask_;
+  bool use_coarse_ = false;
+  bool additive_only_ = false;
+  BlockJacobi jacobi_;
+  TwoLevel two_level_;
+  DirectSolver direct_;
+  std::vector<char> dof_pinned_;
+  VecX Ap_, z_, p_, t_, prev_y_;
+  Real prev_h_ = 0;
 };
 
 class BlockDiagonalEuler : public ImplicitEulerBase {

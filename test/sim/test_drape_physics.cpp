@@ -551,7 +551,7 @@ TEST(DrapeSaveResume, CorruptedStateFilesAreRejectedAndLeaveSimulationUnchanged)
                    replaceFirst(good, "nodes " + std::to_string(n), "nodes " + std::to_string(n - 1)));
   bad.emplace_back("wrong model", replaceFirst(good, "model particle_kes", "model choi_ko"));
   bad.emplace_back("wrong magic", replaceFirst(good, "textile_handling_drape_state", "textile_handling_drape_stat"));
-  bad.emplace_back("wrong version", replaceFirst(good, "textile_handling_drape_state 1", "textile_handling_drape_state 7"));
+  bad.emplace_back("wrong version", replaceFirst(good, "textile_handling_drape_state 2", "textile_handling_drape_state 7"));
   bad.emplace_back("garbage time", replaceToken(good, "time", 1, "0x1.8p-3abc"));
   bad.emplace_back("garbage position", replaceToken(good, "x", 5, "1.0.0"));
   bad.emplace_back("word for a velocity", replaceToken(good, "v", 7, "fast"));
@@ -733,7 +733,8 @@ TEST(DrapeSceneYaml, RepositorySceneParsesAndBuilds) {
   EXPECT_EQ(s.hold[0].name, "corner_ul");
   EXPECT_TRUE(s.hold_position.isApprox(Vec3(0, 0, 1)));
   EXPECT_EQ(s.model, "particle_kes");
-  EXPECT_EQ(s.model_options.jacobian, JacobianMode::kExact);
+  EXPECT_EQ(s.model_options.jacobian, JacobianMode::kDefiniteFix);
+  EXPECT_DOUBLE_EQ(s.model_options.settle_damping, 4.0);
   EXPECT_EQ(s.settings.integrator, IntegratorType::kSemiImplicitEuler);
   EXPECT_EQ(s.settings.policy, StepPolicy::kErrorControlled);
   EXPECT_DOUBLE_EQ(s.settings.dt, 0.001);
