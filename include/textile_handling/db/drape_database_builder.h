@@ -1,0 +1,132 @@
+// Builds the hanging-drape database for one textile: plans the candidate hold points (a lattice of
+// spacing s over the fundamental domain of the textile's mirror symmetry, edges and axes included, or
+// explicit points), simulates the fundamental-domain points in parallel, renders the silhouette views
+// of every result and derives the mirrored hold points by mirroring the final positions (and
+// re-rendering them). Resumable: a rebuild with the same settings skips done simulations. See
+// docs/database.md.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/vision/silhouette_renderer.h"
+
+namespace textile_handling {
+namespace db {
+
+/// Everything a build needs. The simulation and view settings are stored with every simulation row
+/// (as canonical text, DrapeDatabaseBuilder::parametersText), so a rebuild with other settings plans
+/// new rows instead of mixing results.
+struct DrapeBuildConfig {
+  TextileOutline textile = presetTextile("towel");
+  Material material = Material::cotton();
+
+  // ---- hold points ----
+  /// Lattice spacing s [m] of the default hold points (holdPointLattice of the fundamental domain).
+  Real lattice_spacing = 0.08;
+  /// Explicit hold points [m]; when non-empty they replace the lattice. Points outside the fundamental
+  /// domain are folded into it (with symmetry on).
+  std::vector<Vec2> hold_points;
+  /// Simulate only the fundamental domain and derive the mirrored hold points (needs a particle grid
+  /// that is symmetric too; otherwise every hold point is simulated).
+  bool use_symmetry = true;
+
+  // ---- simulation ----
+  Real spacing = 0.02;              ///< particle grid spacing d [m]
+  Real hold_height = 1.0;           ///< world z of the held particle [m]
+  std::string model = "particle_kes";
+  ParticleModelOptions model_options = defaultModelOptions();
+  SimulationSettings settings = defaultSimulationSettings();
+  /// A run that hits settings.max_time without reaching rest is stored as failed (true) or as done
+  /// with rest_reached = false (false).
+  bool require_rest = true;
+  /// A run that diverges or does not reach rest is retried once with dt_max and error_tolerance
+  /// divided by 4 (a period-2 chatter of the linearised implicit step at large dt can keep one
+  /// particle from resting; smaller steps remove it). Failed only if the retry fails too.
+  bool retry_with_smaller_steps = true;
+
+  // ---- views ----
+  vision::ViewSet views;            ///< default 36 views, 10 deg apart
+  vision::CanonicalFrame frame;     ///< default 64 x 64 px, 1 m x 1 m
+  vision::SilhouetteProjection projection = vision::SilhouetteProjection::orthographic();
+
+  // ---- execution ----
+  int workers = 0;                  ///< simulations run at once (0 = hardware threads)
+  int threads_per_simulation = 1;   ///< OpenMP threads inside one simulation
+  bool retry_failed = false;        ///< reset failed rows to pending before building
+  bool progress = true;             ///< progress bar on stderr
+  /// Called after every finished simulation (from a worker thread, serialised).
+  std::function<void(int done, int total)> on_progress;
+
+  /// The fastest robust settings measured for database builds (docs/database.md): semi-implicit Euler
+  /// with the simulator's default linear solver, error-controlled steps (tolerance 0.1 mm, dt_max
+  /// 40 ms), 20 s cap.
+  static SimulationSettings defaultSimulationSettings();
+  /// settle_damping 4 /s and the definite-fix Jacobian.
+  static ParticleModelOptions defaultModelOptions();
+};
+
+struct DrapeBuildReport {
+  std::int64_t textile_id = 0;
+  std::string symmetry;           ///< "none", "x", "y", "xy" (as used: "none" when switched off)
+  bool symmetric_grid = false;    ///< particle grid symmetric, mirrored rows derived
+  int planned = 0;                ///< hold points (rows) in the plan
+  int to_simulate = 0;            ///< simulated rows in the plan
+  int already_done = 0;           ///< simulated rows done before this build
+  int simulated_now = 0;          ///< simulations finished (done) in this build
+  int failed_now = 0;             ///< simulations that failed in this build
+  int derived_now = 0;            ///< mirror rows derived in this build
+  double wall_seconds = 0;
+  double simulation_seconds = 0;  ///< sum of the simulations' wall times
+  std::vector<std::string> failures;  ///< "hold (x, y): reason"
+};
+
+class DrapeDatabaseBuilder {
+ public:
+  /// Validates the configuration (outline, material, finite settings: by building the scene of the
+  /// first hold point) and throws InvalidInputError before anything is written.
+  DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildConfig config);
+
+  /// Plans (or re-plans) the rows and runs every pending one. Throws DrapeDatabaseError on database
+  /// failures (the simulations committed so far stay).
+  DrapeBuildReport build();
+
+  /// Canonical hold points (fundamental domain) and the full plan the build uses.
+  const std::vector<PlannedHoldPoint>& plan() const { return plan_; }
+  const TextileSymmetry& symmetry() const { return symmetry_; }
+  bool symmetricGrid() const { return symmetric_grid_; }
+
+  /// Canonical text of all simulation and view settings (the `parameters` column).
+  static std::string parametersText(const DrapeBuildConfig& config);
+  /// The scene of one hold point under `config`.
+  static DrapeSceneSpec sceneSpec(const DrapeBuildConfig& config, const Vec2& hold);
+
+ private:
+  HangingDrapeDatabase& db_;
+  DrapeBuildConfig config_;
+  TextileSymmetry symmetry_;
+  bool symmetric_grid_ = false;
+  std::vector<PlannedHoldPoint> plan_;
+};
+
+/// Silhouettes of a mirrored shape from the source shape's silhouettes. With the world mirror of
+/// textile_symmetry.h, the view at azimuth a of the mirrored shape is the source's view at -a (mirror x)
+/// or 180 - a (mirror y) flipped left-right about the hold axis, or the source's view at a + 180 (both
+/// mirrors, a half turn) as it is. Exact for the orthographic and the pinhole projection (the hold point
+/// lies on the canonical frame's vertical centre line), so mirror-equivalent hold points get identical
+/// silhouette sets. Returns false (and leaves *out empty) if a needed source angle is not in `source`.
+bool mirroredViews(const std::vector<ViewInput>& source, MirrorKind m, const std::vector<double>& angles,
+                   std::vector<ViewInput>* out);
+
+/// The mask flipped left-right (column x -> width - 1 - x).
+vision::BitMask flipLeftRight(const vision::BitMask& mask);
+
+/// Text progress bar: "[=====>    ]  12/36  elapsed 00:42  ETA 01:23". `width` is the bar width.
+std::string formatProgressBar(int done, int total, double elapsed_s, int failed = 0, int width = 30);
+
+}  // namespace db
+}  // namespace textile_handling

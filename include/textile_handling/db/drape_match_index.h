@@ -1,0 +1,96 @@
+// The stored silhouettes of a drape database loaded into a SilhouetteMatcher (one SQL query, blobs
+// copied straight into the matcher), and queries whose results are hold-point classes: hold points that
+// the textile's mirror symmetry maps onto each other hang in mirrored shapes whose silhouette sets are
+// identical, so silhouettes can only identify a hold point up to that symmetry (docs/database.md).
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/vision/silhouette_matcher.h"
+#include "textile_handling/vision/silhouette_renderer.h"
+
+namespace textile_handling {
+namespace db {
+
+struct MatchIndexOptions {
+  std::string textile;              ///< only this textile (empty = all)
+  std::optional<Real> spacing;      ///< only simulations at this particle spacing [m]
+  bool include_derived = true;      ///< also the mirror-derived rows
+};
+
+/// One loaded simulation (= one (textile, hold point) group of the matcher).
+struct IndexedHoldPoint {
+  std::int64_t simulation_id = 0;
+  std::string textile;
+  Vec2 hold = Vec2::Zero();
+  int lattice_i = 0, lattice_j = 0;
+  MirrorKind source = MirrorKind::kIdentity;
+  std::size_t class_index = 0;
+};
+
+/// Hold points equivalent under the textile's symmetry (same canonical hold point).
+struct HoldPointClass {
+  std::string textile;
+  Vec2 canonical_hold = Vec2::Zero();
+  std::vector<std::size_t> members;  ///< indices into DrapeMatchIndex::hold_points
+};
+
+struct DrapeMatchIndex {
+  vision::SilhouetteMatcher matcher;
+  vision::CanonicalFrame frame;      ///< frame of every loaded mask
+  std::string projection;
+  std::vector<IndexedHoldPoint> hold_points;
+  std::vector<HoldPointClass> classes;
+  std::vector<std::int64_t> entry_view_ids;      ///< per matcher entry
+  std::map<std::string, std::size_t> hold_point_of_group;  ///< matcher hold_point_id -> hold_points index
+  std::map<std::string, TextileSymmetry> symmetry;          ///< per textile name
+  double load_seconds = 0;
+
+  /// The class of a textile's hold point (any point of the class, e.g. a mirrored one; 1 mm tolerance).
+  std::optional<std::size_t> classOf(const std::string& textile, const Vec2& hold) const;
+  /// True if some member of class a and some member of class b are equal or lattice neighbours
+  /// (4-neighbours, or 8 with diagonal = true).
+  bool classesNeighbour(std::size_t a, std::size_t b, bool diagonal) const;
+};
+
+/// Loads every done view (filtered) in one query. Throws NotFoundError if nothing matches,
+/// InvalidInputError if the selection mixes canonical frames or projections, BlobFormatError for a
+/// damaged mask.
+DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options = {});
+
+/// Class index of a match against an entry that belongs to no loaded hold point (e.g. a foreign entry
+/// added to the matcher as a distractor).
+constexpr std::size_t kForeignClass = static_cast<std::size_t>(-1);
+
+struct DrapeMatch {
+  std::size_t class_index = 0;       ///< kForeignClass for entries outside the index's hold points
+  std::string textile;
+  Vec2 canonical_hold = Vec2::Zero();
+  std::size_t hold_point = 0;        ///< the member that matched best (index into hold_points)
+  std::int64_t simulation_id = 0;    ///< its simulation
+  double view_angle_deg = 0;         ///< best view (single image) / base view (fusion)
+  int dx = 0, dy = 0;                ///< best shift (single image; first image for fusion)
+  double score = 0;
+  double margin = 0;                 ///< winner only: score minus the runner-up class's score
+};
+
+struct DrapeQueryResult {
+  std::vector<DrapeMatch> matches;   ///< at most top_k classes, best first
+  double margin = 0;
+  vision::MatchStats stats;
+};
+
+/// Top-k hold-point classes for one canonical mask (options as SilhouetteMatcher::query).
+DrapeQueryResult queryDrape(const DrapeMatchIndex& index, const vision::BitMask& mask,
+                            const vision::MatchOptions& options = {});
+/// Top-k classes for several images with known relative view angles (SilhouetteMatcher::queryFused).
+DrapeQueryResult queryDrapeFused(const DrapeMatchIndex& index, const std::vector<vision::FusionImage>& images,
+                                 const vision::MatchOptions& options = {});
+
+}  // namespace db
+}  // namespace textile_handling

@@ -1,0 +1,213 @@
+// The hanging-drape database: an embedded SQLite file with the textiles, the drape simulations (one per
+// textile, hold point and parameter set, with status, timings and final particle positions) and the
+// rendered silhouette views of every finished simulation. ROS-free. Schema, blob formats, crash safety
+// and migrations: docs/database.md.
+//
+// Guarantees:
+//  * WAL journal, foreign keys on, every write in a transaction; a simulation's positions, its views and
+//    its status change are committed together (storeResults), so a killed writer loses at most the
+//    simulations it had not committed, and the file always opens cleanly;
+//  * bad input (unknown id, invalid polygon or material, NaN, mismatched sizes) is rejected with a typed
+//    error before anything is written;
+//  * blobs are versioned and checksummed (blob_codec.h); a damaged blob raises BlobFormatError naming
+//    the row; an unknown schema version raises SchemaVersionError and leaves the file untouched.
+// Thread-safe: every public method locks an internal mutex (one SQLite connection per object).
+#pragma once
+
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "textile_handling/db/database_errors.h"
+#include "textile_handling/db/sqlite_wrapper.h"
+#include "textile_handling/db/textile_symmetry.h"
+#include "textile_handling/sim/material.h"
+#include "textile_handling/sim/textile_geometry.h"
+#include "textile_handling/vision/bit_mask.h"
+#include "textile_handling/vision/silhouette_renderer.h"
+
+namespace textile_handling {
+namespace db {
+
+struct DatabaseOpenOptions {
+  bool read_only = false;
+  bool create = true;          ///< create the file (and the schema) if it does not exist
+  int busy_timeout_ms = 10000; ///< wait this long for a lock held by another process
+};
+
+struct TextileRecord {
+  std::int64_t id = 0;
+  TextileOutline outline;      ///< as stored (named points = the textile's predefined grasp points)
+  Material material;
+  TextileSymmetry symmetry;    ///< detected when the textile was added
+  std::string created_at;      ///< UTC, ISO 8601
+};
+
+enum class SimulationStatus { kPending, kDone, kFailed };
+std::string toString(SimulationStatus s);           ///< "pending", "done", "failed"
+SimulationStatus simulationStatusFromString(const std::string& s);
+
+/// A simulation row to plan (status pending).
+struct NewSimulation {
+  std::int64_t textile_id = 0;
+  Vec2 hold = Vec2::Zero();     ///< hold point [m], textile frame; must lie on the textile
+  int lattice_i = 0, lattice_j = 0;
+  MirrorKind source = MirrorKind::kIdentity;  ///< identity = simulated; otherwise derived by mirroring
+  /// For derived rows: the simulated row, either by id (> 0) or by index into the same addSimulations()
+  /// call (source_index >= 0, an earlier simulated row).
+  std::int64_t source_simulation_id = 0;
+  int source_index = -1;
+  std::string model = "particle_kes";
+  std::string integrator;
+  Real spacing = 0;             ///< particle grid spacing d [m]
+  std::string parameters;       ///< canonical text of every simulation setting (the builder's YAML)
+};
+
+struct SimulationRecord {
+  std::int64_t id = 0;
+  std::int64_t textile_id = 0;
+  std::string textile_name;
+  Vec2 hold = Vec2::Zero();
+  int lattice_i = 0, lattice_j = 0;
+  MirrorKind source = MirrorKind::kIdentity;
+  std::int64_t source_simulation_id = 0;  ///< 0 for simulated rows
+  std::string model, integrator;
+  Real spacing = 0;
+  std::string parameters;
+  SimulationStatus status = SimulationStatus::kPending;
+  std::string failure_reason;
+  bool rest_reached = false;
+  Real sim_time_s = 0, wall_time_s = 0, render_time_s = 0, hanging_depth_m = 0;
+  long steps = 0, rejected_steps = 0;
+  int particles = 0, held_particle = -1, view_count = 0;
+  std::string created_at, finished_at;
+};
+
+/// One silhouette to store.
+struct ViewInput {
+  double view_angle_deg = 0;
+  vision::BitMask mask;
+};
+
+/// The result of one finished simulation (or of a derived mirror entry).
+struct SimulationResult {
+  std::int64_t simulation_id = 0;
+  VecX positions;                 ///< final particle positions, 3 per particle [m]
+  bool rest_reached = false;
+  Real sim_time_s = 0, wall_time_s = 0, render_time_s = 0, hanging_depth_m = 0;
+  long steps = 0, rejected_steps = 0;
+  int held_particle = -1;
+  std::string projection = "orthographic";
+  vision::CanonicalFrame frame;   ///< canonical frame of the masks
+  std::vector<ViewInput> views;   ///< at least one; masks of frame size, distinct finite angles
+};
+
+struct StoredView {
+  std::int64_t id = 0;
+  std::int64_t simulation_id = 0;
+  double view_angle_deg = 0;
+  std::string projection;
+  int width_px = 0, height_px = 0;
+  double metres_per_pixel = 0, top_margin_px = 0;
+  std::int64_t area = 0;
+  vision::BitMask mask;
+};
+
+struct DatabaseCounts {
+  std::int64_t textiles = 0, simulations = 0, pending = 0, done = 0, failed = 0, views = 0;
+  std::int64_t derived = 0;       ///< mirror-derived rows (any status)
+};
+
+class HangingDrapeDatabase {
+ public:
+  static constexpr int kSchemaVersion = 1;
+  /// PRAGMA application_id of drape databases ("THDB").
+  static constexpr std::int32_t kApplicationId = 0x54484442;
+
+  /// Opens (and, if allowed, creates or migrates) a database. Throws SqliteError, SchemaVersionError.
+  explicit HangingDrapeDatabase(const std::string& path, const DatabaseOpenOptions& options = {});
+  ~HangingDrapeDatabase();
+  HangingDrapeDatabase(const HangingDrapeDatabase&) = delete;
+  HangingDrapeDatabase& operator=(const HangingDrapeDatabase&) = delete;
+
+  const std::string& path() const { return path_; }
+  bool readOnly() const { return read_only_; }
+  int schemaVersion() const;
+
+  // ---- textiles -------------------------------------------------------------------------------
+  /// Adds a textile (name unique). Throws InvalidInputError for an invalid outline/material or a taken name.
+  std::int64_t addTextile(const TextileOutline& outline, const Material& material);
+  /// The id of an identical stored textile (same name, outline, named points and material), or adds it.
+  /// Throws InvalidInputError if a textile of that name exists with a different definition.
+  std::int64_t ensureTextile(const TextileOutline& outline, const Material& material);
+  TextileRecord textile(std::int64_t id) const;  ///< throws NotFoundError
+  std::optional<TextileRecord> findTextile(const std::string& name) const;
+  std::vector<TextileRecord> textiles() const;
+
+  // ---- simulations ----------------------------------------------------------------------------
+  /// Plans simulations in one transaction. A row with the same (textile, parameters, hold point) is
+  /// kept with its status (its lattice indices are updated). Returns the ids in input order.
+  /// Throws NotFoundError (unknown textile / source) or InvalidInputError (NaN, hold point off the
+  /// textile, bad spacing, empty parameters); nothing is written then.
+  std::vector<std::int64_t> addSimulations(const std::vector<NewSimulation>& rows);
+  SimulationRecord simulation(std::int64_t id) const;  ///< throws NotFoundError
+  /// Rows of one textile (0 = all), optionally only one status, ordered by id.
+  std::vector<SimulationRecord> simulations(std::int64_t textile_id = 0,
+                                            std::optional<SimulationStatus> status = std::nullopt) const;
+  /// Stores results atomically: all rows become done with their positions and views, or (on any error)
+  /// nothing changes. Rows must exist and not be done. Throws InvalidInputError / NotFoundError.
+  void storeResults(const std::vector<SimulationResult>& results);
+  /// Marks a row failed with a reason (not allowed for done rows).
+  void markFailed(std::int64_t id, const std::string& reason);
+  /// Failed rows of a textile (0 = all) back to pending; returns how many.
+  int resetFailed(std::int64_t textile_id = 0);
+  /// Final positions of a done simulation. Throws NotFoundError, BlobFormatError.
+  VecX positions(std::int64_t simulation_id) const;
+  /// Views of a simulation ordered by angle (empty unless done). Throws BlobFormatError.
+  std::vector<StoredView> views(std::int64_t simulation_id) const;
+
+  // ---- health ---------------------------------------------------------------------------------
+  DatabaseCounts counts(std::int64_t textile_id = 0) const;
+  /// Invariants a crash must never break: every done row has positions and exactly view_count (> 0)
+  /// views, pending/failed rows have neither, derived rows point to a simulated row of the same
+  /// textile, no orphan views. Returns the violations (empty = consistent).
+  std::vector<std::string> consistencyProblems() const;
+  /// Result of PRAGMA integrity_check ("ok" when healthy).
+  std::string integrityCheck() const;
+
+  /// Runs f(connection) under the object's lock (for loaders that need one custom query).
+  template <typename F>
+  auto withConnection(F&& f) const -> decltype(f(std::declval<SqliteConnection&>())) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return f(conn_);
+  }
+
+ private:
+  void initialiseSchema();
+  void requireWritable(const char* what) const;
+  SimulationRecord readSimulation(SqliteStatement& st) const;
+
+  std::string path_;
+  bool read_only_ = false;
+  mutable SqliteConnection conn_;
+  mutable std::mutex mutex_;
+};
+
+/// The schema migrations: migrateSchema(conn, from) upgrades a database of version `from` to `from + 1`
+/// inside the caller's transaction (v0 -> v1: views get the `area` column, filled from the mask blobs).
+/// Exposed for tests. Throws on failure (the caller rolls back).
+void migrateSchemaStep(SqliteConnection& conn, int from_version);
+
+/// The DDL of schema version 1 (docs/database.md).
+const char* schemaV1Sql();
+
+/// Outline vertices as text ("x y" per line, round-trip precision) and back. fromText throws
+/// InvalidInputError for malformed text.
+std::string outlineToText(const std::vector<Vec2>& vertices);
+std::vector<Vec2> outlineFromText(const std::string& text);
+
+}  // namespace db
+}  // namespace textile_handling

@@ -1,0 +1,227 @@
+#include "textile_handling/db/drape_match_index.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <set>
+#include <utility>
+
+#include "textile_handling/db/blob_codec.h"
+
+namespace textile_handling {
+namespace db {
+
+std::optional<std::size_t> DrapeMatchIndex::classOf(const std::string& textile, const Vec2& hold) const {
+  auto sym = symmetry.find(textile);
+  const Vec2 c = sym != symmetry.end() ? sym->second.canonical(hold) : hold;
+  std::optional<std::size_t> best;
+  double best_d = 1e-3;
+  for (std::size_t k = 0; k < classes.size(); ++k) {
+    if (classes[k].textile != textile) continue;
+    const double d = (classes[k].canonical_hold - c).norm();
+    if (d <= best_d) {
+      best_d = d;
+      best = k;
+    }
+  }
+  return best;
+}
+
+bool DrapeMatchIndex::classesNeighbour(std::size_t a, std::size_t b, bool diagonal) const {
+  if (a >= classes.size() || b >= classes.size()) return false;
+  if (a == b) return true;
+  if (classes[a].textile != classes[b].textile) return false;
+  for (std::size_t i : classes[a].members)
+    for (std::size_t j : classes[b].members)
+      if (latticeNeighbours(hold_points[i].lattice_i, hold_points[i].lattice_j, hold_points[j].lattice_i,
+                            hold_points[j].lattice_j, diagonal))
+        return true;
+  return false;
+}
+
+DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
+  const auto t0 = std::chrono::steady_clock::now();
+  DrapeMatchIndex index;
+  db.withConnection([&](SqliteConnection& conn) {
+    std::string sql =
+        "SELECT v.id, v.view_angle_deg, v.projection, v.width_px, v.height_px, v.metres_per_pixel, v.top_margin_px, "
+        "v.mask, s.id, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, t.name, t.symmetry, t.symmetry_cx, "
+        "t.symmetry_cy FROM views v JOIN simulations s ON s.id = v.simulation_id JOIN textiles t ON t.id = s.textile_id "
+        "WHERE s.status = 'done' AND (?1 = '' OR t.name = ?1) AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) "
+        "AND (?4 = 1 OR s.source = 'identity') ORDER BY s.id, v.view_angle_deg";
+    SqliteStatement st = conn.prepare(sql);
+    st.bind(1, options.textile)
+        .bind(2, options.spacing ? 1 : 0)
+        .bind(3, options.spacing ? *options.spacing : 0.0)
+        .bind(4, options.include_derived ? 1 : 0);
+    std::int64_t last_sim = -1;
+    std::size_t current = 0;
+    bool first = true;
+    std::map<std::pair<std::string, std::pair<long long, long long>>, std::size_t> class_of_key;
+    while (st.step()) {
+      const std::int64_t view_id = st.getInt(0);
+      const std::string what = "view " + std::to_string(view_id);
+      // The blob is checked (tag, version, size, CRC, padding) and copied straight into the mask.
+      vision::BitMask mask = decodeMask(st.blobData(7), static_cast<std::size_t>(st.blobSize(7)), what);
+      const int w = static_cast<int>(st.getInt(3)), h = static_cast<int>(st.getInt(4));
+      if (mask.width() != w || mask.height() != h)
+        throw BlobFormatError("mask blob of " + what + " does not match the row's window size");
+      const double mpp = st.getDouble(5), top = st.getDouble(6);
+      const std::string projection = st.getText(2);
+      if (first) {
+        index.frame.width_px = w;
+        index.frame.height_px = h;
+        index.frame.metres_per_pixel = mpp;
+        index.frame.top_margin_px = top;
+        index.projection = projection;
+        first = false;
+      } else if (w != index.frame.width_px || h != index.frame.height_px || mpp != index.frame.metres_per_pixel ||
+                 top != index.frame.top_margin_px || projection != index.projection) {
+        throw InvalidInputError(
+            "the selected views mix canonical frames or projections; select one textile or spacing");
+      }
+      const std::int64_t sim_id = st.getInt(8);
+      if (sim_id != last_sim) {
+        IndexedHoldPoint hp;
+        hp.simulation_id = sim_id;
+        hp.hold = Vec2(st.getDouble(9), st.getDouble(10));
+        hp.lattice_i = static_cast<int>(st.getInt(11));
+        hp.lattice_j = static_cast<int>(st.getInt(12));
+        hp.source = mirrorKindFromString(st.getText(13));
+        hp.textile = st.getText(14);
+        if (!index.symmetry.count(hp.textile)) {
+          TextileSymmetry s;
+          const std::string sym = st.getText(15);
+          s.mirror_x = sym == "x" || sym == "xy";
+          s.mirror_y = sym == "y" || sym == "xy";
+          s.cx = st.getDouble(16);
+          s.cy = st.getDouble(17);
+          index.symmetry[hp.textile] = s;
+        }
+        const Vec2 canon = index.symmetry[hp.textile].canonical(hp.hold);
+        const auto key = std::make_pair(hp.textile, std::make_pair(std::llround(canon.x() * 1e4), std::llround(canon.y() * 1e4)));
+        auto it = class_of_key.find(key);
+        if (it == class_of_key.end()) {
+          HoldPointClass cl;
+          cl.textile = hp.textile;
+          cl.canonical_hold = canon;
+          it = class_of_key.emplace(key, index.classes.size()).first;
+          index.classes.push_back(cl);
+        }
+        hp.class_index = it->second;
+        current = index.hold_points.size();
+        index.classes[it->second].members.push_back(current);
+        index.hold_point_of_group[std::to_string(sim_id)] = current;
+        index.hold_points.push_back(hp);
+        last_sim = sim_id;
+      }
+      vision::SilhouetteEntry e;
+      e.textile_id = index.hold_points[current].textile;
+      e.hold_point_id = std::to_string(sim_id);
+      e.view_angle_deg = st.getDouble(1);
+      e.mask = std::move(mask);
+      index.matcher.add(e);
+      index.entry_view_ids.push_back(view_id);
+    }
+  });
+  if (index.matcher.empty())
+    throw NotFoundError("no finished simulations with views in '" + db.path() + "'" +
+                        (options.textile.empty() ? std::string() : " for textile '" + options.textile + "'"));
+  index.load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return index;
+}
+
+namespace {
+
+std::size_t maxClassSize(const DrapeMatchIndex& index) {
+  std::size_t m = 1;
+  for (const auto& c : index.classes) m = std::max(m, c.members.size());
+  return m;
+}
+
+template <typename MatchT, typename Fill>
+DrapeQueryResult foldClasses(const DrapeMatchIndex& index, const std::vector<MatchT>& matches, int top_k, Fill fill) {
+  // Matches arrive best first; the first match of a class is that class's score.
+  // Entries outside the loaded hold points (foreign groups) are classes of their own.
+  std::vector<std::pair<const MatchT*, std::size_t>> firsts;  // (match, hold point or kForeignClass)
+  std::set<std::size_t> seen;
+  std::set<std::pair<std::string, std::string>> seen_foreign;
+  const std::size_t want = std::max<std::size_t>(static_cast<std::size_t>(top_k), 2);
+  for (const MatchT& m : matches) {
+    const auto it = index.hold_point_of_group.find(m.hold_point_id);
+    if (it == index.hold_point_of_group.end()) {
+      if (!seen_foreign.insert({m.textile_id, m.hold_point_id}).second) continue;
+      firsts.emplace_back(&m, kForeignClass);
+    } else {
+      if (!seen.insert(index.hold_points[it->second].class_index).second) continue;
+      firsts.emplace_back(&m, it->second);
+    }
+    if (firsts.size() >= want) break;
+  }
+  DrapeQueryResult out;
+  for (std::size_t k = 0; k < firsts.size() && static_cast<int>(k) < top_k; ++k) {
+    const MatchT& m = *firsts[k].first;
+    const std::size_t hp = firsts[k].second;
+    DrapeMatch d;
+    d.score = m.score;
+    if (hp == kForeignClass) {
+      d.class_index = kForeignClass;
+      d.hold_point = kForeignClass;
+      d.textile = m.textile_id;
+      fill(m, d);
+      out.matches.push_back(d);
+      continue;
+    }
+    const std::size_t cl = index.hold_points[hp].class_index;
+    d.class_index = cl;
+    d.textile = index.classes[cl].textile;
+    d.canonical_hold = index.classes[cl].canonical_hold;
+    d.hold_point = hp;
+    d.simulation_id = index.hold_points[hp].simulation_id;
+    fill(m, d);
+    out.matches.push_back(d);
+  }
+  if (!out.matches.empty()) {
+    out.margin = out.matches.front().score - (firsts.size() >= 2 ? firsts[1].first->score : 0.0);
+    out.matches.front().margin = out.margin;
+  }
+  return out;
+}
+
+vision::MatchOptions widened(const DrapeMatchIndex& index, const vision::MatchOptions& options) {
+  if (options.top_k < 1) throw std::invalid_argument("top_k must be >= 1");
+  vision::MatchOptions o = options;
+  const std::size_t want = (static_cast<std::size_t>(options.top_k) + 1) * maxClassSize(index);
+  o.top_k = static_cast<int>(std::min<std::size_t>(std::max<std::size_t>(want, 1), index.matcher.numGroups()));
+  return o;
+}
+
+}  // namespace
+
+DrapeQueryResult queryDrape(const DrapeMatchIndex& index, const vision::BitMask& mask, const vision::MatchOptions& options) {
+  const vision::QueryResult r = index.matcher.query(mask, widened(index, options));
+  DrapeQueryResult out = foldClasses(index, r.matches, options.top_k, [](const vision::MatchResult& m, DrapeMatch& d) {
+    d.view_angle_deg = m.view_angle_deg;
+    d.dx = m.dx;
+    d.dy = m.dy;
+  });
+  out.stats = r.stats;
+  return out;
+}
+
+DrapeQueryResult queryDrapeFused(const DrapeMatchIndex& index, const std::vector<vision::FusionImage>& images,
+                                 const vision::MatchOptions& options) {
+  const vision::FusedQueryResult r = index.matcher.queryFused(images, widened(index, options));
+  DrapeQueryResult out = foldClasses(index, r.matches, options.top_k, [](const vision::FusedMatch& m, DrapeMatch& d) {
+    d.view_angle_deg = m.base_view_deg;
+    if (!m.images.empty()) {
+      d.dx = m.images.front().dx;
+      d.dy = m.images.front().dy;
+    }
+  });
+  out.stats = r.stats;
+  return out;
+}
+
+}  // namespace db
+}  // namespace textile_handling

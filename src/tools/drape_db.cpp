@@ -1,0 +1,462 @@
+// drape_db: builds, inspects, queries and exports the hanging-drape database, and runs the thesis's
+// recognition benchmark. See docs/database.md.
+//
+//   drape_db build  --db FILE --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
+//                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
+//   drape_db list   --db FILE [--simulations] [--textile NAME] [--check]
+//   drape_db query  --db FILE (--mask PNG | --image PNG) --hold-pixel U,V --metres-per-pixel M [--top K]
+//                   [--second-mask PNG | --second-image PNG, --second-hold-pixel U,V, --second-metres-per-pixel M,
+//                    --relative-view DEG] [--canonical] [--textile NAME]
+//   drape_db export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]
+//   drape_db bench  --out DIR [--quick] [--resume] [--threads N]
+//
+// Exit status: 0 success, 1 unexpected error, 2 usage or bad input, 3 database error (cannot open, unknown
+// schema version, damaged data), 4 build finished but some simulations failed.
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <iomanip>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "textile_handling/db/drape_database_builder.h"
+#include "textile_handling/db/drape_export.h"
+#include "textile_handling/db/drape_match_evaluation.h"
+#include "textile_handling/db/drape_match_index.h"
+#include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/db/thesis_benchmark.h"
+#include "textile_handling/vision/mask_cv.h"
+
+using namespace textile_handling;
+using namespace textile_handling::db;
+
+namespace {
+
+constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2, kExitDatabase = 3, kExitFailedSims = 4;
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+const char* kUsage =
+    "usage: drape_db COMMAND [options]\n"
+    "  build  --db FILE --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
+    "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
+    "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
+    "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
+    "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--allow-no-rest] [--quiet]\n"
+    "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
+    "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
+    "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
+    "         [--second-mask PNG | --second-image PNG] [--second-hold-pixel U,V] [--second-metres-per-pixel M]\n"
+    "         [--relative-view DEG]\n"
+    "  export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
+    "  bench  --out DIR [--quick] [--resume] [--threads N]\n"
+    "exit status: 0 ok, 1 error, 2 usage/bad input, 3 database error, 4 some simulations failed\n";
+
+// Minimal option parser: "--key value" pairs and "--flag" switches; repeated keys are kept in order.
+class Args {
+ public:
+  Args(int argc, char** argv, int first, const std::vector<std::string>& flags) {
+    for (int i = first; i < argc; ++i) {
+      std::string a = argv[i];
+      if (a.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + a + "'");
+      if (std::find(flags.begin(), flags.end(), a) != flags.end()) {
+        values_[a].push_back("");
+        continue;
+      }
+      if (i + 1 >= argc) throw UsageError("option " + a + " needs a value");
+      values_[a].push_back(argv[++i]);
+    }
+  }
+  bool has(const std::string& k) const { return values_.count(k) > 0; }
+  std::string get(const std::string& k, const std::string& fallback = "") const {
+    auto it = values_.find(k);
+    return it == values_.end() ? fallback : it->second.back();
+  }
+  std::string require(const std::string& k) const {
+    if (!has(k)) throw UsageError("missing option " + k);
+    return get(k);
+  }
+  std::vector<std::string> all(const std::string& k) const {
+    auto it = values_.find(k);
+    return it == values_.end() ? std::vector<std::string>() : it->second;
+  }
+  void allowOnly(const std::vector<std::string>& known) const {
+    for (const auto& [k, v] : values_)
+      if (std::find(known.begin(), known.end(), k) == known.end()) throw UsageError("unknown option " + k);
+  }
+
+ private:
+  std::map<std::string, std::vector<std::string>> values_;
+};
+
+double number(const std::string& text, const std::string& what) {
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || !std::isfinite(v)) throw UsageError(what + ": '" + text + "' is not a finite number");
+  return v;
+}
+
+int integer(const std::string& text, const std::string& what) {
+  const double v = number(text, what);
+  if (v != std::floor(v) || std::abs(v) > 1e9) throw UsageError(what + ": '" + text + "' is not an integer");
+  return static_cast<int>(v);
+}
+
+std::vector<double> numbers(const std::string& text, std::size_t n, const std::string& what) {
+  std::vector<double> out;
+  std::stringstream ss(text);
+  std::string part;
+  while (std::getline(ss, part, ',')) out.push_back(number(part, what));
+  if (out.size() != n) throw UsageError(what + ": expected " + std::to_string(n) + " comma-separated numbers");
+  return out;
+}
+
+std::string fixed(double v, int p) {
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(p) << v;
+  return os.str();
+}
+
+// ---- build ------------------------------------------------------------------------------------
+
+int cmdBuild(const Args& a) {
+  a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
+               "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
+               "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
+               "--allow-no-rest", "--quiet"});
+  DrapeBuildConfig c;
+  try {
+    c.textile = presetTextile(a.require("--textile"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (a.has("--name")) c.textile.name = a.get("--name");
+  if (a.has("--material")) {
+    try {
+      c.material = loadMaterialYaml(a.get("--material"));
+    } catch (const MaterialError& e) {
+      throw UsageError(e.what());
+    }
+  }
+  c.spacing = number(a.get("--spacing", "0.02"), "--spacing");
+  c.lattice_spacing = number(a.get("--lattice", "0.08"), "--lattice");
+  const TextileSymmetry sym = a.has("--no-symmetry") ? TextileSymmetry{} : detectSymmetry(c.textile);
+  if (a.has("--grid")) {
+    const std::string g = a.get("--grid");
+    const auto x = g.find('x');
+    if (x == std::string::npos) throw UsageError("--grid: expected NXxNY, e.g. 6x6");
+    c.hold_points = fundamentalDomainGrid(c.textile, sym, integer(g.substr(0, x), "--grid"), integer(g.substr(x + 1), "--grid"));
+  }
+  for (const std::string& h : a.all("--hold")) {
+    const auto v = numbers(h, 2, "--hold");
+    c.hold_points.emplace_back(v[0], v[1]);
+  }
+  c.use_symmetry = !a.has("--no-symmetry");
+  c.retry_failed = a.has("--retry-failed");
+  c.progress = !a.has("--quiet");
+  if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
+  if (a.has("--sim-threads")) c.threads_per_simulation = integer(a.get("--sim-threads"), "--sim-threads");
+  if (a.has("--views")) {
+    c.views.count = integer(a.get("--views"), "--views");
+    if (c.views.count < 1) throw UsageError("--views must be >= 1");
+    c.views.step_deg = 360.0 / c.views.count;
+  }
+  if (a.has("--frame")) {
+    const std::string f = a.get("--frame");
+    const auto x = f.find('x'), at = f.find('@');
+    if (x == std::string::npos || at == std::string::npos || at < x) throw UsageError("--frame: expected WxH@METRES");
+    const int w = integer(f.substr(0, x), "--frame"), h = integer(f.substr(x + 1, at - x - 1), "--frame");
+    const double m = number(f.substr(at + 1), "--frame");
+    if (w < 1 || h < 1 || !(m > 0)) throw UsageError("--frame: sizes must be positive");
+    c.frame.width_px = w;
+    c.frame.height_px = h;
+    c.frame.metres_per_pixel = m / w;
+  }
+  try {
+    if (a.has("--integrator")) c.settings.integrator = integratorFromString(a.get("--integrator"));
+    if (a.has("--policy")) c.settings.policy = stepPolicyFromString(a.get("--policy"));
+    if (a.has("--linear-solver")) c.settings.solver.kind = linearSolverFromString(a.get("--linear-solver"));
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  if (a.has("--jacobian")) {
+    const std::string j = a.get("--jacobian");
+    if (j == "exact")
+      c.model_options.jacobian = JacobianMode::kExact;
+    else if (j == "definite_fix")
+      c.model_options.jacobian = JacobianMode::kDefiniteFix;
+    else
+      throw UsageError("--jacobian: expected exact or definite_fix");
+  }
+  if (a.has("--dt-max")) c.settings.dt_max = number(a.get("--dt-max"), "--dt-max");
+  if (a.has("--tolerance")) c.settings.error_tolerance = number(a.get("--tolerance"), "--tolerance");
+  if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
+  if (a.has("--settle-damping")) c.model_options.settle_damping = number(a.get("--settle-damping"), "--settle-damping");
+  c.require_rest = !a.has("--allow-no-rest");
+
+  HangingDrapeDatabase db(a.require("--db"));
+  DrapeDatabaseBuilder builder(db, c);
+  const DrapeBuildReport r = builder.build();
+  std::cout << "textile '" << c.textile.name << "' (id " << r.textile_id << "), symmetry " << r.symmetry
+            << (r.symmetric_grid ? "" : " (grid not symmetric: every hold point simulated)") << "\n"
+            << "hold points: " << r.planned << " (" << r.to_simulate << " simulated, " << r.planned - r.to_simulate
+            << " mirrored)\n"
+            << "this build: " << r.simulated_now << " simulations done, " << r.failed_now << " failed, "
+            << r.derived_now << " mirrored entries derived, " << r.already_done << " were already done; "
+            << fixed(r.wall_seconds, 1) << " s wall, " << fixed(r.simulation_seconds, 1) << " s simulation time\n";
+  for (const auto& f : r.failures) std::cout << "failed: " << f << "\n";
+  // Rows of this plan (these settings) that are failed, whether now or in an earlier build.
+  const std::string params = DrapeDatabaseBuilder::parametersText(c);
+  int plan_done = 0, plan_failed = 0;
+  for (const SimulationRecord& s : db.simulations(r.textile_id)) {
+    if (s.parameters != params) continue;
+    plan_done += s.status == SimulationStatus::kDone;
+    plan_failed += s.status == SimulationStatus::kFailed;
+  }
+  const DatabaseCounts n = db.counts(r.textile_id);
+  std::cout << "these settings: " << plan_done << " of " << r.planned << " hold points done, " << plan_failed
+            << " failed" << (plan_failed ? " (--retry-failed runs them again)" : "") << "\n"
+            << "textile in the database: " << n.done << " done, " << n.pending << " pending, " << n.failed
+            << " failed, " << n.views << " views\n";
+  return plan_failed > 0 ? kExitFailedSims : kExitOk;
+}
+
+// ---- list -------------------------------------------------------------------------------------
+
+int cmdList(const Args& a) {
+  a.allowOnly({"--db", "--simulations", "--textile", "--check"});
+  DatabaseOpenOptions o;
+  o.read_only = true;  // listing and checking never write
+  o.create = false;
+  HangingDrapeDatabase db(a.require("--db"), o);
+  std::cout << "database " << db.path() << " (schema version " << db.schemaVersion() << ")\n";
+  std::int64_t only = 0;
+  if (a.has("--textile")) {
+    const auto t = db.findTextile(a.get("--textile"));
+    if (!t) throw NotFoundError("no textile named '" + a.get("--textile") + "'");
+    only = t->id;
+  }
+  for (const TextileRecord& t : db.textiles()) {
+    if (only && t.id != only) continue;
+    const DatabaseCounts n = db.counts(t.id);
+    std::cout << "textile " << t.id << " '" << t.outline.name << "': material " << t.material.name << ", symmetry "
+              << t.symmetry.name() << ", " << t.outline.named_points.size() << " grasp points; simulations: " << n.done
+              << " done, " << n.pending << " pending, " << n.failed << " failed (" << n.derived << " mirrored); "
+              << n.views << " views\n";
+    if (!a.has("--simulations")) continue;
+    std::cout << "  id  status   source     hold_x_m  hold_y_m  lattice  d_m     rest  sim_s  wall_s  steps  views  "
+                 "depth_m  note\n";
+    for (const SimulationRecord& s : db.simulations(t.id)) {
+      std::cout << "  " << std::setw(3) << s.id << " " << std::left << std::setw(8) << toString(s.status) << " "
+                << std::setw(10) << toString(s.source) << std::right << " " << std::setw(8) << fixed(s.hold.x(), 4) << "  "
+                << std::setw(8) << fixed(s.hold.y(), 4) << "  " << std::setw(3) << s.lattice_i << "," << std::left
+                << std::setw(3) << s.lattice_j << std::right << "  " << fixed(s.spacing, 4) << "  "
+                << (s.status == SimulationStatus::kDone ? (s.rest_reached ? "yes " : "no  ") : "-   ") << " "
+                << std::setw(5) << fixed(s.sim_time_s, 2) << "  " << std::setw(6) << fixed(s.wall_time_s, 2) << "  "
+                << std::setw(5) << s.steps << "  " << std::setw(5) << s.view_count << "  " << std::setw(7)
+                << fixed(s.hanging_depth_m, 3) << "  "
+                << (s.status == SimulationStatus::kFailed
+                        ? s.failure_reason
+                        : (s.source != MirrorKind::kIdentity ? "from " + std::to_string(s.source_simulation_id) : ""))
+                << "\n";
+    }
+  }
+  if (a.has("--check")) {
+    const std::string ic = db.integrityCheck();
+    const auto problems = db.consistencyProblems();
+    std::cout << "integrity_check: " << ic << "\n";
+    for (const auto& p : problems) std::cout << "inconsistent: " << p << "\n";
+    // Decode every blob once.
+    long blobs = 0;
+    for (const SimulationRecord& s : db.simulations(0, SimulationStatus::kDone)) {
+      db.positions(s.id);
+      blobs += 1 + static_cast<long>(db.views(s.id).size());
+    }
+    std::cout << "blobs decoded: " << blobs << "\n";
+    if (ic != "ok" || !problems.empty()) return kExitDatabase;
+    std::cout << "consistent\n";
+  }
+  return kExitOk;
+}
+
+// ---- query ------------------------------------------------------------------------------------
+
+vision::BitMask loadQueryMask(const Args& a, const std::string& prefix, const vision::CanonicalFrame& frame) {
+  const std::string mask_key = prefix + "mask", image_key = prefix + "image";
+  if (a.has(mask_key) == a.has(image_key)) throw UsageError("give exactly one of " + mask_key + " and " + image_key);
+  cv::Mat mask;
+  if (a.has(mask_key)) {
+    mask = cv::imread(a.get(mask_key), cv::IMREAD_GRAYSCALE);
+    if (mask.empty()) throw UsageError("cannot read mask image '" + a.get(mask_key) + "'");
+    cv::threshold(mask, mask, 127, 255, cv::THRESH_BINARY);
+  } else {
+    const cv::Mat img = cv::imread(a.get(image_key), cv::IMREAD_COLOR);
+    if (img.empty()) throw UsageError("cannot read image '" + a.get(image_key) + "'");
+    SegmentationOptions so;
+    if (a.has("--background")) {
+      const auto v = numbers(a.get("--background"), 3, "--background");
+      for (int k = 0; k < 3; ++k) so.background_bgr[static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(std::clamp(v[static_cast<std::size_t>(k)], 0.0, 255.0));
+    }
+    if (a.has("--threshold")) so.threshold = number(a.get("--threshold"), "--threshold");
+    mask = segmentAgainstBackground(img, so);
+  }
+  if (a.has("--canonical")) {
+    if (mask.cols != frame.width_px || mask.rows != frame.height_px)
+      throw UsageError("--canonical: the mask is " + std::to_string(mask.cols) + "x" + std::to_string(mask.rows) +
+                       " px, the database frame is " + std::to_string(frame.width_px) + "x" +
+                       std::to_string(frame.height_px));
+    return vision::fromMat(mask);
+  }
+  const auto hp = numbers(a.require(prefix + "hold-pixel"), 2, prefix + "hold-pixel");
+  const double mpp = number(a.require(prefix + "metres-per-pixel"), prefix + "metres-per-pixel");
+  if (!(mpp > 0)) throw UsageError(prefix + "metres-per-pixel must be > 0");
+  return vision::canonicaliseCameraMask(mask, Vec2(hp[0], hp[1]), Vec2(mpp, mpp), frame);
+}
+
+int cmdQuery(const Args& a) {
+  a.allowOnly({"--db", "--mask", "--image", "--background", "--threshold", "--hold-pixel", "--metres-per-pixel",
+               "--canonical", "--top", "--textile", "--second-mask", "--second-image", "--second-hold-pixel",
+               "--second-metres-per-pixel", "--relative-view"});
+  DatabaseOpenOptions o;
+  o.read_only = true;
+  o.create = false;
+  HangingDrapeDatabase db(a.require("--db"), o);
+  MatchIndexOptions mio;
+  mio.textile = a.get("--textile");
+  const DrapeMatchIndex index = loadDrapeMatchIndex(db, mio);
+  vision::MatchOptions mo;
+  mo.top_k = integer(a.get("--top", "5"), "--top");
+  if (mo.top_k < 1) throw UsageError("--top must be >= 1");
+  const vision::BitMask q = loadQueryMask(a, "--", index.frame);
+  if (q.count() == 0) throw UsageError("the query mask is empty after canonicalisation (wrong hold pixel or scale?)");
+  DrapeQueryResult r;
+  const bool fused = a.has("--second-mask") || a.has("--second-image");
+  if (fused) {
+    std::vector<vision::FusionImage> imgs(2);
+    imgs[0].mask = q;
+    imgs[1].mask = loadQueryMask(a, "--second-", index.frame);
+    imgs[1].relative_view_deg = number(a.require("--relative-view"), "--relative-view");
+    r = queryDrapeFused(index, imgs, mo);
+  } else {
+    r = queryDrape(index, q, mo);
+  }
+  std::cout << "database: " << index.matcher.size() << " silhouettes, " << index.classes.size()
+            << " hold-point classes; query " << (fused ? "two images (fused)" : "one image") << ", " << q.count()
+            << " px\n";
+  std::cout << "rank  score   margin  textile      hold_x_m  hold_y_m   sim  view_deg  shift  equivalent hold points [m]\n";
+  for (std::size_t rank = 1; rank <= r.matches.size(); ++rank) {
+    const DrapeMatch& m = r.matches[rank - 1];
+    std::string eq;
+    if (m.class_index != kForeignClass)
+      for (std::size_t h : index.classes[m.class_index].members) {
+        const Vec2 p = index.hold_points[h].hold;
+        if (!eq.empty()) eq += " ";
+        eq += "(" + fixed(p.x(), 3) + "," + fixed(p.y(), 3) + ")";
+      }
+    const std::string shift = std::to_string(m.dx) + "," + std::to_string(m.dy);
+    std::cout << std::setw(4) << rank << "  " << fixed(m.score, 4) << "  " << fixed(m.margin, 4) << "  " << std::left
+              << std::setw(12) << m.textile << std::right << " " << std::setw(8) << fixed(m.canonical_hold.x(), 4)
+              << "  " << std::setw(8) << fixed(m.canonical_hold.y(), 4) << "  " << std::setw(4) << m.simulation_id
+              << "  " << std::setw(8) << fixed(m.view_angle_deg, 1) << "  " << std::left << std::setw(5) << shift
+              << std::right << "  " << eq << "\n";
+  }
+  if (r.matches.empty()) std::cout << "no match with a positive score\n";
+  return kExitOk;
+}
+
+// ---- export -----------------------------------------------------------------------------------
+
+int cmdExport(const Args& a) {
+  a.allowOnly({"--db", "--simulation", "--ply", "--obj", "--png-dir"});
+  if (!a.has("--ply") && !a.has("--obj") && !a.has("--png-dir")) throw UsageError("export needs --ply, --obj or --png-dir");
+  DatabaseOpenOptions o;
+  o.read_only = true;
+  o.create = false;
+  HangingDrapeDatabase db(a.require("--db"), o);
+  const std::int64_t id = integer(a.require("--simulation"), "--simulation");
+  if (a.has("--ply") || a.has("--obj")) {
+    const StoredDrapeMesh m = loadDrapeMesh(db, id);
+    for (const char* key : {"--ply", "--obj"})
+      if (a.has(key)) {
+        const std::filesystem::path parent = std::filesystem::path(a.get(key)).parent_path();
+        std::error_code ec;
+        if (!parent.empty()) std::filesystem::create_directories(parent, ec);
+      }
+    if (a.has("--ply")) {
+      writePly(a.get("--ply"), m.positions, m.triangles);
+      std::cout << "wrote " << a.get("--ply") << " (" << m.positions.size() / 3 << " vertices, " << m.triangles.size()
+                << " triangles)\n";
+    }
+    if (a.has("--obj")) {
+      writeObj(a.get("--obj"), m.positions, m.triangles);
+      std::cout << "wrote " << a.get("--obj") << "\n";
+    }
+  }
+  if (a.has("--png-dir")) {
+    const auto paths = exportViewPngs(db, id, a.get("--png-dir"));
+    std::cout << "wrote " << paths.size() << " PNG files to " << a.get("--png-dir") << " (last: " << paths.back() << ")\n";
+  }
+  return kExitOk;
+}
+
+// ---- bench ------------------------------------------------------------------------------------
+
+int cmdBench(const Args& a) {
+  a.allowOnly({"--out", "--quick", "--resume", "--threads", "--pairs", "--seed"});
+  ThesisBenchmarkConfig c;
+  c.out_dir = a.require("--out");
+  c.quick = a.has("--quick");
+  c.resume = a.has("--resume");
+  if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
+  if (a.has("--pairs")) c.pairs_per_shape = integer(a.get("--pairs"), "--pairs");
+  if (a.has("--seed")) c.seed = static_cast<std::uint64_t>(integer(a.get("--seed"), "--seed"));
+  runThesisBenchmark(c);
+  return kExitOk;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc < 2 || std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h") {
+    std::cerr << kUsage;
+    return argc < 2 ? kExitUsage : kExitOk;
+  }
+  const std::string cmd = argv[1];
+  try {
+    if (cmd == "build") return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet"}));
+    if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
+    if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
+    if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));
+    if (cmd == "bench") return cmdBench(Args(argc, argv, 2, {"--quick", "--resume"}));
+    std::cerr << "drape_db: unknown command '" << cmd << "'\n" << kUsage;
+    return kExitUsage;
+  } catch (const UsageError& e) {
+    std::cerr << "drape_db " << cmd << ": " << e.what() << " (drape_db --help shows the usage)\n";
+    return kExitUsage;
+  } catch (const InvalidInputError& e) {
+    std::cerr << "drape_db " << cmd << ": invalid input: " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const NotFoundError& e) {
+    std::cerr << "drape_db " << cmd << ": " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const DrapeDatabaseError& e) {
+    std::cerr << "drape_db " << cmd << ": database error: " << e.what() << "\n";
+    return kExitDatabase;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "drape_db " << cmd << ": invalid input: " << e.what() << "\n";
+    return kExitUsage;
+  } catch (const std::exception& e) {
+    std::cerr << "drape_db " << cmd << ": error: " << e.what() << "\n";
+    return kExitError;
+  }
+}

@@ -1,0 +1,289 @@
+// The database builder: hold-point plan, mirrored entries, resume, failures, validation, determinism.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <set>
+
+#include "textile_handling/db/drape_database_builder.h"
+#include "textile_handling/db/drape_match_index.h"
+#include "textile_handling/sim/particle_cloth_model.h"
+
+using namespace textile_handling;
+using namespace textile_handling::db;
+
+namespace {
+
+class TempDatabase {
+ public:
+  explicit TempDatabase(const std::string& name) {
+    path_ = (std::filesystem::temp_directory_path() /
+             ("th_db_builder_" + std::to_string(::getpid()) + "_" + name + ".sqlite"))
+                .string();
+    remove();
+  }
+  ~TempDatabase() { remove(); }
+  const std::string& path() const { return path_; }
+
+ private:
+  void remove() {
+    for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + s);
+  }
+  std::string path_;
+};
+
+// 30 x 30 cm square, d = 3 cm, lattice 10 cm: quadrant x, y in {0, .10, .15} -> 9 simulated, 25 in all.
+DrapeBuildConfig smallSquare() {
+  DrapeBuildConfig c;
+  c.textile = presetTextile("square");
+  c.spacing = 0.03;
+  c.lattice_spacing = 0.10;
+  c.frame = vision::CanonicalFrame::fromMetric(0.5, 0.5, 64);
+  c.progress = false;
+  c.workers = 2;
+  return c;
+}
+
+double azimuthMod(double a) {
+  a = std::fmod(a, 360.0);
+  return a < 0 ? a + 360.0 : a;
+}
+
+}  // namespace
+
+TEST(DrapeDatabaseBuilder, SimulatesOneQuadrantAndDerivesTheMirrors) {
+  TempDatabase t("mirror");
+  HangingDrapeDatabase db(t.path());
+  DrapeDatabaseBuilder b(db, smallSquare());
+  EXPECT_TRUE(b.symmetricGrid());
+  EXPECT_EQ(b.symmetry().name(), "xy");
+  const DrapeBuildReport r = b.build();
+  EXPECT_EQ(r.planned, 25);
+  EXPECT_EQ(r.to_simulate, 9);
+  EXPECT_EQ(r.simulated_now, 9);
+  EXPECT_EQ(r.failed_now, 0);
+  EXPECT_EQ(r.derived_now, 16);
+  const DatabaseCounts c = db.counts();
+  EXPECT_EQ(c.done, 25);
+  EXPECT_EQ(c.derived, 16);
+  EXPECT_EQ(c.views, 25 * 36);
+  EXPECT_TRUE(db.consistencyProblems().empty());
+
+  // A mirrored shape's silhouette at azimuth a is the source's at -a (mirror x) or 180 - a (mirror y)
+  // flipped left-right, or at a + 180 (both mirrors). The derived entries are exactly that; rendering
+  // the mirrored positions gives the same silhouettes up to the rasteriser's tie rules.
+  std::map<std::int64_t, SimulationRecord> rows;
+  for (const auto& s : db.simulations()) rows[s.id] = s;
+  std::string err;
+  const auto tris = vision::trianglesFromTopology(
+      ParticleTopology::fromGrid(ParticleGrid::rasterize(presetTextile("square"), 0.03, &err)));
+  int compared = 0, identical_render = 0;
+  double worst_render_iou = 1, worst_ortho_iou = 1;
+  for (const auto& [id, s] : rows) {
+    if (s.source == MirrorKind::kIdentity) continue;
+    const SimulationRecord& src = rows.at(s.source_simulation_id);
+    EXPECT_TRUE(b.symmetry().apply(s.source, src.hold).isApprox(s.hold, 1e-12));
+    EXPECT_NEAR(s.hanging_depth_m, src.hanging_depth_m, 1e-12);
+    const VecX xs = db.positions(src.id), xd = db.positions(id);
+    EXPECT_NEAR(xs.segment<3>(3 * src.held_particle).z(), xd.segment<3>(3 * s.held_particle).z(), 1e-12);
+    std::map<long, vision::BitMask> src_views;
+    for (const auto& v : db.views(src.id)) src_views[std::lround(v.view_angle_deg)] = v.mask;
+    for (const auto& v : db.views(id)) {
+      const double a = v.view_angle_deg;
+      bool flip = true;
+      double from = a;
+      if (s.source == MirrorKind::kMirrorX) from = -a;
+      if (s.source == MirrorKind::kMirrorY) from = 180.0 - a;
+      if (s.source == MirrorKind::kMirrorXY) {
+        from = a + 180.0;
+        flip = false;
+      }
+      const vision::BitMask& m = src_views.at(std::lround(azimuthMod(from)) % 360);
+      EXPECT_EQ(v.mask, flip ? flipLeftRight(m) : m) << "simulation " << id << " view " << a;
+      // Orthographic identity: the mirror-x shape at a looks like the source at 180 - a, unflipped.
+      if (s.source == MirrorKind::kMirrorX)
+        worst_ortho_iou = std::min(worst_ortho_iou, vision::iou(src_views.at(std::lround(azimuthMod(180.0 - a)) % 360), v.mask));
+      const vision::BitMask rendered =
+          vision::renderSilhouette(xd, tris, static_cast<Index>(s.held_particle), a, {}, smallSquare().frame);
+      worst_render_iou = std::min(worst_render_iou, vision::iou(rendered, v.mask));
+      identical_render += rendered == v.mask;
+      ++compared;
+    }
+  }
+  EXPECT_EQ(compared, 16 * 36);
+  EXPECT_GE(worst_render_iou, 0.95);
+  EXPECT_GE(worst_ortho_iou, 0.95);
+  EXPECT_GE(identical_render, compared / 3);
+  std::printf("mirrored views vs re-rendered mirrored shapes: %d of %d identical, worst IoU %.4f\n", identical_render,
+              compared, worst_render_iou);
+
+  // The matcher sees 25 hold points in 9 classes.
+  const DrapeMatchIndex index = loadDrapeMatchIndex(db);
+  EXPECT_EQ(index.matcher.size(), 25u * 36u);
+  EXPECT_EQ(index.hold_points.size(), 25u);
+  EXPECT_EQ(index.classes.size(), 9u);
+  MatchIndexOptions only_simulated;
+  only_simulated.include_derived = false;
+  EXPECT_EQ(loadDrapeMatchIndex(db, only_simulated).matcher.size(), 9u * 36u);
+  // A stored silhouette finds its own class first.
+  const auto views = db.views(rows.begin()->first);
+  const DrapeQueryResult q = queryDrape(index, views[3].mask);
+  ASSERT_FALSE(q.matches.empty());
+  EXPECT_EQ(q.matches.front().score, 1.0);
+  EXPECT_EQ(q.matches.front().class_index, index.classOf("square", rows.begin()->second.hold).value());
+  std::set<std::size_t> distinct;
+  for (const auto& m : q.matches) distinct.insert(m.class_index);
+  EXPECT_EQ(distinct.size(), q.matches.size());  // one entry per class
+}
+
+TEST(DrapeDatabaseBuilder, RebuildResumesAndSkipsDoneSimulations) {
+  TempDatabase t("resume");
+  HangingDrapeDatabase db(t.path());
+  {
+    DrapeDatabaseBuilder b(db, smallSquare());
+    EXPECT_EQ(b.build().simulated_now, 9);
+  }
+  DrapeDatabaseBuilder again(db, smallSquare());
+  const DrapeBuildReport r = again.build();
+  EXPECT_EQ(r.already_done, 9);
+  EXPECT_EQ(r.simulated_now, 0);
+  EXPECT_EQ(r.derived_now, 0);
+  EXPECT_EQ(db.counts().simulations, 25);
+  // Other settings plan new rows instead of mixing results.
+  DrapeBuildConfig other = smallSquare();
+  other.settings.max_time = 19.0;
+  DrapeDatabaseBuilder third(db, other);
+  EXPECT_EQ(third.build().simulated_now, 9);
+  EXPECT_EQ(db.counts().simulations, 50);
+  EXPECT_NE(DrapeDatabaseBuilder::parametersText(other), DrapeDatabaseBuilder::parametersText(smallSquare()));
+}
+
+TEST(DrapeDatabaseBuilder, ParallelWorkersGiveTheSameShapes) {
+  TempDatabase t1("w1"), t2("w2");
+  HangingDrapeDatabase db1(t1.path()), db2(t2.path());
+  DrapeBuildConfig c = smallSquare();
+  c.workers = 1;
+  DrapeDatabaseBuilder(db1, c).build();
+  c.workers = 3;
+  DrapeDatabaseBuilder(db2, c).build();
+  const auto a = db1.simulations(), b = db2.simulations();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) {
+    ASSERT_TRUE(a[k].hold.isApprox(b[k].hold));
+    EXPECT_EQ(db1.positions(a[k].id), db2.positions(b[k].id)) << "row " << a[k].id;
+  }
+}
+
+TEST(DrapeDatabaseBuilder, FailedSimulationsAreStoredWithTheirReason) {
+  TempDatabase t("fail");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c = smallSquare();
+  c.settings.max_time = 0.02;  // far too short to come to rest
+  c.retry_with_smaller_steps = false;
+  const DrapeBuildReport r = DrapeDatabaseBuilder(db, c).build();
+  EXPECT_EQ(r.failed_now, 9);
+  EXPECT_EQ(r.simulated_now, 0);
+  EXPECT_EQ(r.failures.size(), 9u);
+  const DatabaseCounts n = db.counts();
+  EXPECT_EQ(n.failed, 25);  // mirrors fail with their source
+  EXPECT_EQ(n.views, 0);
+  for (const auto& s : db.simulations()) {
+    EXPECT_EQ(s.status, SimulationStatus::kFailed);
+    if (s.source == MirrorKind::kIdentity)
+      EXPECT_NE(s.failure_reason.find("no rest within max_time"), std::string::npos) << s.failure_reason;
+    else
+      EXPECT_NE(s.failure_reason.find("source simulation"), std::string::npos) << s.failure_reason;
+  }
+  EXPECT_TRUE(db.consistencyProblems().empty());
+  // Without retry_failed a rebuild leaves them; with it they run again.
+  EXPECT_EQ(DrapeDatabaseBuilder(db, c).build().failed_now, 0);
+  c.retry_failed = true;
+  EXPECT_EQ(DrapeDatabaseBuilder(db, c).build().failed_now, 9);
+  // Stored as done (rest_reached = false) when rest is not required.
+  c.require_rest = false;
+  c.retry_failed = false;
+  const DrapeBuildReport ok = DrapeDatabaseBuilder(db, c).build();
+  EXPECT_EQ(ok.simulated_now, 9);
+  for (const auto& s : db.simulations(0, SimulationStatus::kDone)) EXPECT_FALSE(s.rest_reached);
+}
+
+TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
+  TempDatabase t("invalid");
+  HangingDrapeDatabase db(t.path());
+  auto expectInvalid = [&](const DrapeBuildConfig& c, const std::string& what) {
+    try {
+      DrapeDatabaseBuilder b(db, c);
+      b.build();
+      ADD_FAILURE() << "accepted " << what;
+    } catch (const InvalidInputError& e) {
+      EXPECT_FALSE(std::string(e.what()).empty());
+    }
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  DrapeBuildConfig c = smallSquare();
+  c.spacing = nan;
+  expectInvalid(c, "NaN spacing");
+  c = smallSquare();
+  c.settings.dt_max = nan;
+  expectInvalid(c, "NaN dt_max");
+  c = smallSquare();
+  c.model_options.settle_damping = std::numeric_limits<double>::infinity();
+  expectInvalid(c, "infinite damping");
+  c = smallSquare();
+  c.lattice_spacing = -1;
+  expectInvalid(c, "negative lattice");
+  c = smallSquare();
+  c.hold_points = {Vec2(0.5, 0.5)};
+  expectInvalid(c, "hold point off the textile");
+  c = smallSquare();
+  c.material.areal_density = nan;
+  expectInvalid(c, "NaN density");
+  c = smallSquare();
+  c.textile.outline = {Vec2(0, 0), Vec2(1, 1), Vec2(1, 0), Vec2(0, 1)};
+  expectInvalid(c, "self-intersecting outline");
+  c = smallSquare();
+  c.model = "choi_ko_missing";
+  expectInvalid(c, "unknown model");
+  c = smallSquare();
+  c.frame.width_px = 0;
+  expectInvalid(c, "empty frame");
+  c = smallSquare();
+  c.threads_per_simulation = 0;
+  expectInvalid(c, "zero threads");
+  EXPECT_EQ(db.counts().textiles, 0);
+  EXPECT_EQ(db.counts().simulations, 0);
+}
+
+TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {
+  TempDatabase t("asym");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c;
+  c.textile = presetTextile("towel");
+  c.spacing = 0.04;  // 0.46 m is not a multiple of 4 cm: the particle grid is not mirror-symmetric in y
+  c.lattice_spacing = 0.3;
+  c.progress = false;
+  c.views.count = 4;
+  c.views.step_deg = 90;
+  DrapeDatabaseBuilder b(db, c);
+  EXPECT_FALSE(b.symmetricGrid());
+  const DrapeBuildReport r = b.build();
+  EXPECT_EQ(r.planned, 9);
+  EXPECT_EQ(r.to_simulate, 9);
+  EXPECT_EQ(r.derived_now, 0);
+  EXPECT_EQ(db.counts().derived, 0);
+  EXPECT_EQ(db.counts().done + db.counts().failed, 9);
+  // Still folded into classes by the textile's symmetry: 4 classes (corner, two edge middles, centre).
+  EXPECT_EQ(loadDrapeMatchIndex(db).classes.size(), 4u);
+}
+
+TEST(DrapeDatabaseBuilder, ProgressBar) {
+  EXPECT_EQ(formatProgressBar(0, 10, 0.0, 0, 10), "[>         ] 0/10 simulations  elapsed 00:00  ETA --:--");
+  EXPECT_EQ(formatProgressBar(5, 10, 62.0, 0, 10), "[=====>    ] 5/10 simulations  elapsed 01:02  ETA 01:02");
+  EXPECT_EQ(formatProgressBar(10, 10, 3725.0, 2, 10),
+            "[==========] 10/10 simulations (2 failed)  elapsed 1:02:05  ETA 00:00");
+}
