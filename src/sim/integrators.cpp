@@ -334,12 +334,13 @@ class BlockJacobi {
 // fill-reducing ordering are therefore fixed, and only values change from step to step.
 class TwoLevel {
  public:
-  bool matches(const BlockPattern* p, const std::vector<char>& node_pinned) const {
-    return pattern_ == p && pinned_ == node_pinned;
+  bool matches(const BlockPattern& p, const std::vector<char>& node_pinned) const {
+    return pattern_ == &p && num_blocks_ == p.numBlocks() && pinned_ == node_pinned;
   }
 
   void setup(const BlockPattern& p, const std::vector<char>& node_pinned) {
     pattern_ = &p;
+    num_blocks_ = p.numBlocks();
     pinned_ = node_pinned;
     b_ = p.blockSize();
     const Index n = p.numNodes();
@@ -418,6 +419,7 @@ class TwoLevel {
 
   // Assembles and factorises the coarse matrix P^T A P.
   bool update(const BlockSparseMatrix& A) {
+    if (num_agg_ == 0) return false;
     const int bb = b_ * b_;
     const auto& rs = coarse_pattern_->rowStart();
     const auto& fine = A.values();
@@ -454,6 +456,7 @@ class TwoLevel {
 
  private:
   const BlockPattern* pattern_ = nullptr;
+  Index num_blocks_ = 0;
   std::vector<char> pinned_;
   int b_ = 3;
   std::vector<Index> agg_;
@@ -595,7 +598,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
     // indefinite exact Jacobian), this step falls back to block-Jacobi, and CG decides.
     use_coarse_ = false;
     if (solver_.preconditioner == PreconditionerKind::kTwoLevel) {
-      if (!two_level_.matches(&system_.pattern(), mask_)) two_level_.setup(system_.pattern(), mask_);
+      if (!two_level_.matches(system_.pattern(), mask_)) two_level_.setup(system_.pattern(), mask_);
       use_coarse_ = two_level_.update(system_);
     }
     const Real bnorm = std::sqrt(deterministicDot(bf, bf));

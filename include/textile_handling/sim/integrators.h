@@ -103,7 +103,8 @@ class Integrator {
                            Real t, Real h, VecX& x_new, VecX& v_new) = 0;
   /// Memory carried from one step to the next (the CG warm start), for save/resume; empty if none.
   virtual std::vector<Real> solverState() const { return {}; }
-  /// Restores solverState(); returns false (and changes nothing) if the state does not fit.
+  /// Restores solverState(); returns false (and changes nothing) if it is malformed. A state whose
+  /// size does not match the model is ignored at the next step (that step starts cold).
   virtual bool setSolverState(const std::vector<Real>& state) { return state.empty(); }
 };
 
