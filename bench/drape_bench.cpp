@@ -1,13 +1,16 @@
 // drape_bench: speed and accuracy of every integrator / time-step policy on the thesis towel.
 //
-//   drape_bench [--out DIR] [--quick] [--threads N]
+//   drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S]
 //
 // For the 64x46 cm cotton towel at d = 1 cm (and d = 0.5 cm unless --quick), held at a corner and at
 // the middle of a short side, each configuration runs from the flat released sheet to rest. Its rest
 // shape is compared with a reference computed at the same resolution with the semi-implicit
-// integrator at a small fixed time step. Writes DIR/sim_benchmark.csv and DIR/sim_benchmark.png
-// (wall time against error, log-log, one point per configuration). This is a benchmark, not a test:
-// nothing here asserts timings.
+// integrator at a small fixed time step (1 ms, CG tolerance 1e-8), with the same collision setting.
+// Writes DIR/sim_benchmark.csv and DIR/sim_benchmark.png (wall time against error, log-log, one point
+// per configuration). This is a benchmark, not a test: nothing here asserts timings.
+//
+// Every run is capped at --max-wall seconds of wall time (default 300): an explicit integrator at
+// d = 0.5 cm would otherwise run for hours; a capped row says so in its note.
 #include <omp.h>
 
 #include <algorithm>
@@ -17,7 +20,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iostream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -28,21 +33,24 @@ using namespace textile_handling;
 
 namespace {
 
+/// One benchmarked configuration: a name for the chart and a change to the base scene.
 struct Config {
-  IntegratorType integrator;
-  StepPolicy policy;
+  std::string label;
+  std::function<void(DrapeSceneSpec&)> apply;
 };
 
 struct Row {
-  std::string model, integrator, policy, hold;
+  std::string model, integrator, policy, solver, hold, collision, note;
   Real spacing = 0;
   Index particles = 0;
-  long steps = 0, rejected = 0;
-  Real sim_s = 0, wall_s = 0, ms_per_step = 0, mean_err = 0, max_err = 0;
+  long steps = 0, rejected = 0, collision_events = 0, intersecting_pairs = -1;
+  Real sim_s = 0, wall_s = 0, ms_per_step = 0, assembly_ms = 0, solve_ms = 0, collision_ms = 0, cg_its = 0;
+  Real mean_err = 0, max_err = 0;
   bool rest = false, diverged = false;
-  std::string note;
 };
 
+/// The benchmark scene: same settling damping for every configuration (it shortens the swinging,
+/// not the rest shape) and the definite Jacobian fix, which every implicit configuration needs.
 DrapeSceneSpec towelSpec(Real spacing, const std::string& hold) {
   DrapeSceneSpec s;
   s.textile = presetTextile("towel");
@@ -50,13 +58,20 @@ DrapeSceneSpec towelSpec(Real spacing, const std::string& hold) {
   s.spacing = spacing;
   s.hold = {HoldPoint{hold, Vec2::Zero()}};
   s.hold_position = Vec3(0, 0, 1.0);
-  // Same settling damping for every configuration: it shortens the swinging, not the rest shape.
   s.model_options.settle_damping = 4.0;
   s.model_options.jacobian = JacobianMode::kDefiniteFix;
   s.settings.max_time = 8.0;
+  s.settings.dt = 1e-3;
   s.settings.dt_max = 0.02;
   s.settings.error_tolerance = 1e-3;
   return s;
+}
+
+/// The recommended fast settings of the semi-implicit integrator (docs/simulation.md).
+void fastSolver(DrapeSceneSpec& s) {
+  s.settings.dt_max = 0.0125;
+  s.settings.solver.relative_tolerance = 0.03;
+  s.settings.solver.warm_start = true;
 }
 
 void shapeError(const VecX& a, const VecX& b, Real* mean, Real* max) {
@@ -71,75 +86,144 @@ void shapeError(const VecX& a, const VecX& b, Real* mean, Real* max) {
   *max = worst;
 }
 
+std::string solverLabel(const DrapeSceneSpec& s) {
+  if (s.settings.integrator == IntegratorType::kRK4) return "none";
+  if (s.settings.integrator == IntegratorType::kBlockDiagonalEuler) return "block_3x3";
+  char buf[96];
+  if (s.settings.solver.kind == LinearSolverKind::kDirect) return "direct_ldlt";
+  std::snprintf(buf, sizeof buf, "cg_%s_tol%g%s", toString(s.settings.solver.preconditioner).c_str(),
+                s.settings.solver.relative_tolerance, s.settings.solver.warm_start ? "_warm" : "");
+  return buf;
+}
+
+struct Run {
+  RunResult result;
+  VecX x;
+  long pairs = 0;
+};
+
+Run simulate(const DrapeSceneSpec& spec) {
+  DrapeScene scene = buildDrapeScene(spec);
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  sim.setPostStepPass(scene.postStepPass());
+  Run r;
+  r.result = sim.run();
+  r.x = sim.positions();
+  r.pairs = countIntersectingTrianglePairs(scene.triangles(), r.x);
+  return r;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string out_dir = "out/bench";
   bool quick = false;
+  Real max_wall = 300;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--out" && i + 1 < argc) out_dir = argv[++i];
     else if (a == "--quick") quick = true;
     else if (a == "--threads" && i + 1 < argc) omp_set_num_threads(std::atoi(argv[++i]));
+    else if (a == "--max-wall" && i + 1 < argc) max_wall = std::atof(argv[++i]);
     else {
-      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N]\n";
+      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S]\n";
       return 2;
     }
+  }
+  if (!(max_wall > 0)) {
+    std::cerr << "drape_bench: --max-wall must be positive\n";
+    return 2;
   }
   std::filesystem::create_directories(out_dir);
   const std::vector<Real> spacings = quick ? std::vector<Real>{0.01} : std::vector<Real>{0.01, 0.005};
   const std::vector<std::string> holds = {"corner_ul", "short_side_left_mid"};
+  auto integ = [](IntegratorType it, StepPolicy p, Real dt0) {
+    return [=](DrapeSceneSpec& s) {
+      s.settings.integrator = it;
+      s.settings.policy = p;
+      s.settings.dt = dt0;
+    };
+  };
   const std::vector<Config> configs = {
-      {IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled},
-      {IntegratorType::kSemiImplicitEuler, StepPolicy::kThesis},
-      {IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled},
-      {IntegratorType::kBlockDiagonalEuler, StepPolicy::kThesis},
-      {IntegratorType::kRK4, StepPolicy::kErrorControlled},
+      {"semi_implicit/error fast", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
+         fastSolver(s);
+       }},
+      {"semi_implicit/error", integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)},
+      {"semi_implicit/thesis", integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kThesis, 1e-3)},
+      {"block_diagonal/error", integ(IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled, 1e-3)},
+      {"block_diagonal/thesis", integ(IntegratorType::kBlockDiagonalEuler, StepPolicy::kThesis, 1e-3)},
+      {"rk4/error", integ(IntegratorType::kRK4, StepPolicy::kErrorControlled, 1e-4)},
+      {"semi_implicit/error fast + v3", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
+         fastSolver(s);
+         s.self_collision = true;
+       }},
   };
   std::vector<Row> rows;
-  std::cout << "drape_bench: " << omp_get_max_threads() << " threads\n";
+  std::cout << "drape_bench: " << omp_get_max_threads() << " threads, wall cap " << max_wall << " s per run\n";
   for (Real d : spacings) {
     for (const auto& hold : holds) {
-      // Reference: semi-implicit Euler at a small fixed step, same resolution and rest criteria.
-      DrapeSceneSpec ref_spec = towelSpec(d, hold);
-      ref_spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
-      ref_spec.settings.policy = StepPolicy::kFixed;
-      ref_spec.settings.dt = 1e-3;
-      ref_spec.settings.solver.relative_tolerance = 1e-8;
-      ref_spec.settings.solver.max_iterations = 5000;
-      DrapeScene ref_scene = buildDrapeScene(ref_spec);
-      DrapeSimulation ref(*ref_scene.model, ref_scene.pins, ref_spec.settings, ref_scene.x0, ref_scene.v0);
-      const RunResult rr = ref.run();
-      std::printf("reference d=%.3f %-20s rest=%d steps=%ld wall=%.1fs%s\n", d, hold.c_str(), rr.rest_reached, rr.steps,
-                  rr.wall_time, rr.diverged ? (" DIVERGED: " + rr.divergence_reason).c_str() : "");
+      // References (one per collision setting), semi-implicit Euler at a small fixed step.
+      std::map<bool, Run> refs;
+      for (bool collide : {false, true}) {
+        DrapeSceneSpec ref_spec = towelSpec(d, hold);
+        ref_spec.self_collision = collide;
+        ref_spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
+        ref_spec.settings.policy = StepPolicy::kFixed;
+        ref_spec.settings.dt = 1e-3;
+        ref_spec.settings.solver.relative_tolerance = 1e-8;
+        ref_spec.settings.solver.max_iterations = 5000;
+        refs[collide] = simulate(ref_spec);
+        const RunResult& rr = refs[collide].result;
+        std::printf("reference d=%.3f %-20s collision=%s rest=%d steps=%ld wall=%.1fs pairs=%ld%s\n", d, hold.c_str(),
+                    collide ? "v3" : "off", rr.rest_reached, rr.steps, rr.wall_time, refs[collide].pairs,
+                    rr.diverged ? (" DIVERGED: " + rr.divergence_reason).c_str() : "");
+        std::fflush(stdout);
+      }
       for (const auto& c : configs) {
         DrapeSceneSpec spec = towelSpec(d, hold);
-        spec.settings.integrator = c.integrator;
-        spec.settings.policy = c.policy;
-        spec.settings.dt = c.integrator == IntegratorType::kRK4 ? 1e-4 : 1e-3;
-        DrapeScene scene = buildDrapeScene(spec);
-        DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
-        const RunResult r = sim.run();
+        c.apply(spec);
+        spec.settings.max_wall_time = max_wall;
+        const Run run = simulate(spec);
+        const RunResult& r = run.result;
+        const Run& ref = refs[spec.self_collision];
         Row row;
-        row.model = scene.model->name();
-        row.integrator = toString(c.integrator);
-        row.policy = toString(c.policy);
+        row.model = spec.model;
+        row.integrator = toString(spec.settings.integrator);
+        row.policy = toString(spec.settings.policy);
+        row.solver = solverLabel(spec);
         row.hold = hold;
+        row.collision = spec.self_collision ? "v3" : "off";
         row.spacing = d;
-        row.particles = scene.model->numNodes();
+        row.particles = static_cast<Index>(run.x.size() / 3);
         row.steps = r.steps;
         row.rejected = r.rejected_steps;
         row.sim_s = r.sim_time;
         row.wall_s = r.wall_time;
-        row.ms_per_step = r.steps > 0 ? 1e3 * r.wall_time / r.steps : 0;
+        const Real steps = std::max<Real>(1, static_cast<Real>(r.steps));
+        row.ms_per_step = 1e3 * r.wall_time / steps;
+        row.assembly_ms = r.assembly_ms / steps;
+        row.solve_ms = r.solve_ms / steps;
+        row.collision_ms = r.post_step_ms / steps;
+        row.collision_events = r.post_step_events;
+        row.cg_its = static_cast<Real>(r.solver_iterations) / steps;
+        row.intersecting_pairs = run.pairs;
         row.rest = r.rest_reached;
         row.diverged = r.diverged;
-        row.note = r.diverged ? r.divergence_reason : (r.rest_reached ? "" : "time cap");
-        if (!r.diverged) shapeError(sim.positions(), ref.positions(), &row.mean_err, &row.max_err);
+        row.note = r.diverged ? "diverged at t=" + std::to_string(r.divergence_time) + ": " + r.divergence_reason
+                   : r.rest_reached ? ""
+                   : r.wall_cap_reached ? "wall-time cap"
+                                        : "simulated-time cap";
+        if (!ref.result.rest_reached) row.note += std::string(row.note.empty() ? "" : "; ") + "reference not at rest";
+        if (!r.diverged) shapeError(run.x, ref.x, &row.mean_err, &row.max_err);
         else row.mean_err = row.max_err = std::nan("");
-        std::printf("  %-15s %-6s steps=%6ld rej=%5ld sim=%5.2fs wall=%7.2fs %6.2fms/step err mean=%.4f max=%.4f m%s\n",
-                    row.integrator.c_str(), row.policy.c_str(), row.steps, row.rejected, row.sim_s, row.wall_s,
-                    row.ms_per_step, row.mean_err, row.max_err, row.rest ? "" : (" (" + row.note + ")").c_str());
+        std::printf("  %-30s steps=%6ld rej=%5ld sim=%5.2fs wall=%7.2fs %6.2fms/step (asm %.2f solve %.2f coll %.2f, "
+                    "%.1f its) err mean=%.4f max=%.4f m pairs=%ld %s\n",
+                    c.label.c_str(), row.steps, row.rejected, row.sim_s, row.wall_s, row.ms_per_step, row.assembly_ms,
+                    row.solve_ms, row.collision_ms, row.cg_its, row.mean_err, row.max_err, row.intersecting_pairs,
+                    row.note.c_str());
+        std::fflush(stdout);
         rows.push_back(row);
       }
     }
@@ -147,21 +231,26 @@ int main(int argc, char** argv) {
   const std::string csv = out_dir + "/sim_benchmark.csv";
   {
     std::ofstream f(csv);
-    f << "model,integrator,policy,spacing_m,particles,hold,steps,rejected_steps,sim_time_s,wall_s,ms_per_step,"
-         "mean_err_m,max_err_m,rest_reached,diverged,note\n";
+    f << "model,integrator,policy,solver,collision,spacing_m,particles,hold,steps,rejected_steps,sim_time_s,wall_s,"
+         "ms_per_step,assembly_ms_per_step,solve_ms_per_step,collision_ms_per_step,collision_events,cg_its_per_step,"
+         "mean_err_m,max_err_m,intersecting_pairs,rest_reached,diverged,threads,note\n";
     for (const auto& r : rows)
-      f << r.model << ',' << r.integrator << ',' << r.policy << ',' << r.spacing << ',' << r.particles << ',' << r.hold
-        << ',' << r.steps << ',' << r.rejected << ',' << r.sim_s << ',' << r.wall_s << ',' << r.ms_per_step << ','
-        << r.mean_err << ',' << r.max_err << ',' << (r.rest ? "true" : "false") << ','
-        << (r.diverged ? "true" : "false") << ",\"" << r.note << "\"\n";
+      f << r.model << ',' << r.integrator << ',' << r.policy << ',' << r.solver << ',' << r.collision << ','
+        << r.spacing << ',' << r.particles << ',' << r.hold << ',' << r.steps << ',' << r.rejected << ',' << r.sim_s
+        << ',' << r.wall_s << ',' << r.ms_per_step << ',' << r.assembly_ms << ',' << r.solve_ms << ','
+        << r.collision_ms << ',' << r.collision_events << ',' << r.cg_its << ',' << r.mean_err << ',' << r.max_err
+        << ',' << r.intersecting_pairs << ',' << (r.rest ? "true" : "false") << ','
+        << (r.diverged ? "true" : "false") << ',' << omp_get_max_threads() << ",\"" << r.note << "\"\n";
   }
   std::vector<ChartPoint> points;
   for (const auto& r : rows) {
     if (r.diverged) continue;
-    char label[96];
-    std::snprintf(label, sizeof label, "%s/%s d=%.1fcm %s", r.integrator.c_str(), r.policy.c_str(), 100 * r.spacing,
-                  r.hold == "corner_ul" ? "corner" : "side");
-    points.push_back({r.wall_s, std::max(r.mean_err, 1e-6), label, r.integrator + "/" + r.policy});
+    char label[128];
+    std::snprintf(label, sizeof label, "d=%.1fcm %s%s%s", 100 * r.spacing, r.hold == "corner_ul" ? "corner" : "side",
+                  r.collision == "off" ? "" : " v3", r.rest ? "" : " (no rest)");
+    const std::string fast = r.solver.find("warm") != std::string::npos ? " fast" : "";
+    points.push_back({std::max(r.wall_s, 1e-3), std::max(r.mean_err, 1e-6), label,
+                      r.integrator + "/" + r.policy + fast});
   }
   std::string err;
   if (!writeLogLogChart(out_dir + "/sim_benchmark.png", points, "wall time to rest [s]", "mean rest-shape error [m]",

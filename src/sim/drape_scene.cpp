@@ -51,8 +51,8 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   scene.spec = spec;
   scene.grid = ParticleGrid::rasterize(spec.textile, spec.spacing, &error);
   if (scene.grid.empty()) throw std::invalid_argument("rasterisation failed: " + error);
-  auto model = std::make_unique<ParticleClothModel>(ParticleTopology::fromGrid(scene.grid), spec.material,
-                                                    spec.model_options);
+  ParticleTopology topology = ParticleTopology::fromGrid(scene.grid);
+  auto model = std::make_unique<ParticleClothModel>(topology, spec.material, spec.model_options);
 
   const Index n = scene.grid.numActive();
   // Shift so that the first held point (or the first region's centre) sits at hold_position.
@@ -102,7 +102,36 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   for (const auto& np : spec.textile.named_points)
     scene.named_particles.emplace_back(np.name, scene.grid.nearestActive(np.position));
   scene.model = std::move(model);
+
+  // Collision handling (the pass constructors validate the obstacles and options).
+  if (!spec.obstacles.empty()) {
+    scene.obstacle_pass = std::make_unique<ObstaclePass>(n, scene.pins, spec.obstacles.options);
+    for (const auto& p : spec.obstacles.planes) scene.obstacle_pass->addPlane(p);
+    for (const auto& b : spec.obstacles.boxes) scene.obstacle_pass->addBox(b);
+    for (const auto& sp : spec.obstacles.spheres) scene.obstacle_pass->addSphere(sp);
+  }
+  if (spec.self_collision) {
+    if (!(spec.collision.max_passes >= 1) || !(spec.collision.d_min >= 0) || !(spec.collision.restitution >= 0) ||
+        !(spec.collision.restitution <= 1) || !(spec.collision.tangential_damping >= 0) ||
+        !(spec.collision.tangential_damping <= 1) || !(spec.collision.cell_size_factor > 0) ||
+        !std::isfinite(spec.collision.cell_size_factor) || !(spec.collision.barycentric_tolerance >= 0))
+      throw std::invalid_argument("collision: options out of range (see docs/collision.md)");
+    scene.self_collision_pass = std::make_unique<SelfCollisionPass>(topology, scene.pins, spec.collision);
+  }
+  if (scene.obstacle_pass && scene.self_collision_pass)
+    scene.pass_chain = std::make_unique<PostStepPassChain>(
+        std::vector<PostStepPass*>{scene.obstacle_pass.get(), scene.self_collision_pass.get()});
   return scene;
+}
+
+PostStepPass* DrapeScene::postStepPass() const {
+  if (pass_chain) return pass_chain.get();
+  if (obstacle_pass) return obstacle_pass.get();
+  return self_collision_pass.get();
+}
+
+ClothTriangles DrapeScene::triangles() const {
+  return ClothTriangles::fromTopology(ParticleTopology::fromGrid(grid));
 }
 
 Real hangingDepth(const DrapeScene& scene, const VecX& x) {
@@ -158,7 +187,7 @@ bool getBool(const YAML::Node& parent, const char* key, bool fallback, const std
 
 template <int N>
 Eigen::Matrix<Real, N, 1> getVec(const YAML::Node& n, const std::string& field) {
-  if (!n.IsSequence() || n.size() != N)
+  if (!n || !n.IsSequence() || n.size() != N)
     throw std::invalid_argument("scene: '" + field + "' must be a list of " + std::to_string(N) + " numbers");
   Eigen::Matrix<Real, N, 1> v;
   for (int i = 0; i < N; ++i) v[i] = getReal(n[i], field);
@@ -284,15 +313,142 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
       t.dt_max = positive(m, "dt_max_s", t.dt_max, "simulation.");
       t.error_tolerance = positive(m, "error_tolerance_m", t.error_tolerance, "simulation.");
       t.max_time = positive(m, "max_time_s", t.max_time, "simulation.");
+      t.max_wall_time = positive(m, "max_wall_time_s", t.max_wall_time, "simulation.");
       t.rest_speed = positive(m, "rest_speed_m_s", t.rest_speed, "simulation.");
       t.rest_mean_speed = positive(m, "rest_mean_speed_m_s", t.rest_mean_speed, "simulation.");
       t.rest_duration = positive(m, "rest_duration_s", t.rest_duration, "simulation.");
       t.max_edge_stretch = positive(m, "max_edge_stretch", t.max_edge_stretch, "simulation.");
       t.solver.relative_tolerance = positive(m, "cg_tolerance", t.solver.relative_tolerance, "simulation.");
       if (m["cg_max_iterations"]) t.solver.max_iterations = getInt(m["cg_max_iterations"], "simulation.cg_max_iterations");
+      if (m["linear_solver"]) {
+        const std::string name = getString(m["linear_solver"], "simulation.linear_solver");
+        try {
+          t.solver.kind = linearSolverFromString(name);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(std::string("scene: 'simulation.linear_solver': ") + e.what());
+        }
+      }
+      if (m["preconditioner"]) {
+        const std::string name = getString(m["preconditioner"], "simulation.preconditioner");
+        try {
+          t.solver.preconditioner = preconditionerFromString(name);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(std::string("scene: 'simulation.preconditioner': ") + e.what());
+        }
+      }
+      t.solver.warm_start = getBool(m, "cg_warm_start", t.solver.warm_start, "simulation.");
+      if (m["cg_smoothing_steps"]) {
+        t.solver.smoothing_steps = getInt(m["cg_smoothing_steps"], "simulation.cg_smoothing_steps");
+        if (t.solver.smoothing_steps < 0)
+          throw std::invalid_argument("scene: 'simulation.cg_smoothing_steps' must be >= 0");
+      }
+      if (m["cg_smoothing_weight"]) {
+        t.solver.smoothing_weight = positive(m, "cg_smoothing_weight", t.solver.smoothing_weight, "simulation.");
+        if (!(t.solver.smoothing_weight < 1.0))
+          throw std::invalid_argument("scene: 'simulation.cg_smoothing_weight' must be in (0, 1)");
+      }
+      if (m["cg_accept_tolerance"]) {
+        t.solver.accept_tolerance = getReal(m["cg_accept_tolerance"], "simulation.cg_accept_tolerance");
+        if (!(t.solver.accept_tolerance >= 0 && t.solver.accept_tolerance < 1))
+          throw std::invalid_argument("scene: 'simulation.cg_accept_tolerance' must be in [0, 1)");
+      }
+      if (!(t.solver.relative_tolerance < 1))
+        throw std::invalid_argument("scene: 'simulation.cg_tolerance' must be < 1");
       if (m["trajectory_every"]) t.trajectory_every = getInt(m["trajectory_every"], "simulation.trajectory_every");
       if (t.solver.max_iterations < 1) throw std::invalid_argument("scene: 'simulation.cg_max_iterations' must be >= 1");
       if (t.trajectory_every < 0) throw std::invalid_argument("scene: 'simulation.trajectory_every' must be >= 0");
+    }
+    if (const YAML::Node c = root["collision"]) {
+      if (!c.IsMap()) throw std::invalid_argument("scene: 'collision' must be a map");
+      SelfCollisionOptions& o = s.collision;
+      if (c["self"]) {
+        const std::string v = getString(c["self"], "collision.self");
+        if (v == "off" || v == "false" || v == "none") {
+          s.self_collision = false;
+        } else {
+          try {
+            o.version = selfCollisionVersionFromString(v);
+          } catch (const std::invalid_argument& e) {
+            throw std::invalid_argument(std::string("scene: 'collision.self': ") + e.what() + " (or off)");
+          }
+          s.self_collision = true;
+        }
+      }
+      if (c["response"]) {
+        const std::string r = getString(c["response"], "collision.response");
+        if (r == "stop") o.response = CollisionResponse::kStop;
+        else if (r == "thesis") o.response = CollisionResponse::kThesis;
+        else if (r == "relative") o.response = CollisionResponse::kRelative;
+        else throw std::invalid_argument("scene: 'collision.response' must be stop, thesis or relative");
+      }
+      if (c["max_passes"]) {
+        o.max_passes = getInt(c["max_passes"], "collision.max_passes");
+        if (o.max_passes < 1) throw std::invalid_argument("scene: 'collision.max_passes' must be >= 1");
+      }
+      o.d_min = positive(c, "d_min_m", o.d_min, "collision.");
+      o.include_diagonals = getBool(c, "include_diagonals", o.include_diagonals, "collision.");
+      o.point_in_triangle_check = getBool(c, "point_in_triangle_check", o.point_in_triangle_check, "collision.");
+      o.fallback_rollback = getBool(c, "fallback_rollback", o.fallback_rollback, "collision.");
+      for (const char* key : {"restitution", "tangential_damping"}) {
+        if (!c[key]) continue;
+        const Real v = getReal(c[key], std::string("collision.") + key);
+        if (!(v >= 0 && v <= 1)) throw std::invalid_argument(std::string("scene: 'collision.") + key + "' must be in [0, 1]");
+        (std::string(key) == "restitution" ? o.restitution : o.tangential_damping) = v;
+      }
+      o.cell_size_factor = positive(c, "cell_size_factor", o.cell_size_factor, "collision.");
+    }
+    if (const YAML::Node ob = root["obstacles"]) {
+      if (!ob.IsMap()) throw std::invalid_argument("scene: 'obstacles' must be a map");
+      ObstacleSpec& o = s.obstacles;
+      if (ob["contact_distance_m"]) {
+        o.options.contact_distance = getReal(ob["contact_distance_m"], "obstacles.contact_distance_m");
+        if (!(o.options.contact_distance >= 0))
+          throw std::invalid_argument("scene: 'obstacles.contact_distance_m' must be >= 0");
+      }
+      if (ob["friction"]) {
+        o.options.friction = getReal(ob["friction"], "obstacles.friction");
+        if (!(o.options.friction >= 0)) throw std::invalid_argument("scene: 'obstacles.friction' must be >= 0");
+      }
+      auto list = [&](const char* key) {
+        const YAML::Node l = ob[key];
+        if (l && !l.IsSequence())
+          throw std::invalid_argument(std::string("scene: 'obstacles.") + key + "' must be a list");
+        return l;
+      };
+      for (const auto& p : list("planes")) {
+        PlaneObstacle q;
+        q.point = getVec<3>(p["point"], "obstacles.planes[].point");
+        q.normal = getVec<3>(p["normal"], "obstacles.planes[].normal");
+        if (!(q.normal.norm() > 1e-12)) throw std::invalid_argument("scene: 'obstacles.planes[].normal' is zero");
+        o.planes.push_back(q);
+      }
+      for (const auto& b : list("boxes")) {
+        BoxObstacle q;
+        if (b["min"] || b["max"]) {
+          const Vec3 lo = getVec<3>(b["min"], "obstacles.boxes[].min");
+          const Vec3 hi = getVec<3>(b["max"], "obstacles.boxes[].max");
+          if (!((hi - lo).array() > 0).all())
+            throw std::invalid_argument("scene: 'obstacles.boxes[]': max must exceed min on every axis");
+          q = BoxObstacle::axisAligned(lo, hi);
+        } else {
+          q.centre = getVec<3>(b["centre"], "obstacles.boxes[].centre");
+          q.half_extents = getVec<3>(b["half_extents"], "obstacles.boxes[].half_extents");
+          if (!(q.half_extents.array() > 0).all())
+            throw std::invalid_argument("scene: 'obstacles.boxes[].half_extents' must be positive");
+          if (b["yaw_rad"]) {
+            const Real yaw = getReal(b["yaw_rad"], "obstacles.boxes[].yaw_rad");
+            q.rotation = Eigen::AngleAxis<Real>(yaw, Vec3::UnitZ()).toRotationMatrix();
+          }
+        }
+        o.boxes.push_back(q);
+      }
+      for (const auto& sp : list("spheres")) {
+        SphereObstacle q;
+        q.centre = getVec<3>(sp["centre"], "obstacles.spheres[].centre");
+        q.radius = positive(sp, "radius_m", 0, "obstacles.spheres[].");
+        if (!sp["radius_m"]) throw std::invalid_argument("scene: 'obstacles.spheres[].radius_m' is missing");
+        o.spheres.push_back(q);
+      }
     }
   } catch (const YAML::Exception& e) {
     throw std::invalid_argument(std::string("scene: wrong type: ") + e.what());

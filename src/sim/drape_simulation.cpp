@@ -38,7 +38,8 @@ DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, Simulation
   if (x_.size() != model.numDofs() || v_.size() != model.numDofs())
     throw std::invalid_argument("DrapeSimulation: state size does not match the model");
   if (!(settings.dt > 0) || !std::isfinite(settings.dt) || !(settings.dt_min > 0) ||
-      !(settings.dt_max >= settings.dt_min) || !(settings.max_time >= 0) || !(settings.error_tolerance > 0))
+      !(settings.dt_max >= settings.dt_min) || !(settings.max_time >= 0) || !(settings.error_tolerance > 0) ||
+      !(settings.max_wall_time >= 0))
     throw std::invalid_argument("DrapeSimulation: time-step settings must be finite and positive");
   if (pins_.anchors.size() != pins_.nodes.size() || pins_.waypoint_times.size() != pins_.waypoint_offsets.size())
     throw std::invalid_argument("DrapeSimulation: pinned node lists have different lengths");
@@ -154,6 +155,8 @@ bool DrapeSimulation::stepOnce() {
     StepOutcome out = integrator_->step(model_, pins_, x_, v_, t_, h, x_new_, v_new_);
     result_.step_ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
     result_.solver_iterations += out.solver_iterations;
+    result_.assembly_ms += out.assembly_ms;
+    result_.solve_ms += out.solve_ms;
     result_.degenerate_terms = std::max(result_.degenerate_terms, out.degenerate_terms);
     std::string why;
     if (out.ok && checkDivergence(x_new_, v_new_, &why)) {
@@ -238,8 +241,14 @@ bool DrapeSimulation::stepOnce() {
 RunResult DrapeSimulation::run(Real until) {
   const auto start = std::chrono::steady_clock::now();
   const Real stop = std::min(until, settings_.max_time);
+  result_.wall_cap_reached = false;
   while (!result_.rest_reached && !result_.diverged && t_ < stop - 1e-12) {
     if (!stepOnce()) break;
+    if (settings_.max_wall_time > 0 &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > settings_.max_wall_time) {
+      result_.wall_cap_reached = true;
+      break;
+    }
   }
   result_.wall_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   result_.sim_time = t_;

@@ -765,11 +765,15 @@ class RungeKutta4 : public Integrator {
       v_new.segment(p * b, b).setZero();
       v_new.segment<3>(p * b) = pins.offsetVelocity(t + h);
     }
-    // Embedded estimate: distance to the explicit midpoint rule (second order).
+    // Embedded estimate: distance to the explicit midpoint rule (second order), in position and in
+    // velocity times h. The velocity term matters: a stiff mode near RK4's stability limit shows in
+    // the velocities (jitter) long before the positions move, and at rest detection's scale.
     const VecX x_mid = x1 + h * v2;
+    const VecX v_mid = v1 + h * a2;
     Real worst = 0;
     for (Index i = 0; i < model.numNodes(); ++i)
-      worst = std::max(worst, (x_new.segment<3>(i * b) - x_mid.segment<3>(i * b)).norm());
+      worst = std::max({worst, (x_new.segment<3>(i * b) - x_mid.segment<3>(i * b)).norm(),
+                        h * (v_new.segment<3>(i * b) - v_mid.segment<3>(i * b)).norm()});
     out.error_estimate = worst;
     out.error_order = 3;
     if (!allFinite(x_new) || !allFinite(v_new)) {

@@ -738,9 +738,15 @@ TEST(DrapeSceneYaml, RepositorySceneParsesAndBuilds) {
   EXPECT_EQ(s.settings.integrator, IntegratorType::kSemiImplicitEuler);
   EXPECT_EQ(s.settings.policy, StepPolicy::kErrorControlled);
   EXPECT_DOUBLE_EQ(s.settings.dt, 0.001);
-  EXPECT_DOUBLE_EQ(s.settings.dt_max, 0.02);
+  EXPECT_DOUBLE_EQ(s.settings.dt_max, 0.0125);
   EXPECT_DOUBLE_EQ(s.settings.error_tolerance, 0.001);
   EXPECT_DOUBLE_EQ(s.settings.max_time, 10.0);
+  EXPECT_EQ(s.settings.solver.kind, LinearSolverKind::kCG);
+  EXPECT_EQ(s.settings.solver.preconditioner, PreconditionerKind::kTwoLevel);
+  EXPECT_DOUBLE_EQ(s.settings.solver.relative_tolerance, 0.03);
+  EXPECT_TRUE(s.settings.solver.warm_start);
+  EXPECT_TRUE(s.self_collision);
+  EXPECT_EQ(s.collision.version, SelfCollisionVersion::kRollback);
   // The same text through parseDrapeSceneYaml, and it builds: 65 x 47 particles, corner pinned at 1 m.
   const DrapeSceneSpec t = parseDrapeSceneYaml(readFile(kSourceDir + "/config/scenes/towel_corner.yaml"));
   EXPECT_EQ(t.settings.integrator, s.settings.integrator);
@@ -749,6 +755,10 @@ TEST(DrapeSceneYaml, RepositorySceneParsesAndBuilds) {
   ASSERT_EQ(scene.pins.nodes.size(), 1u);
   EXPECT_TRUE(scene.pins.anchors[0].isApprox(Vec3(0, 0, 1)));
   EXPECT_EQ(scene.x0.size(), 3 * 65 * 47);
+  // Self-collision only: the pass is the self-collision pass itself, no chain, no obstacles.
+  EXPECT_NE(scene.self_collision_pass, nullptr);
+  EXPECT_EQ(scene.obstacle_pass, nullptr);
+  EXPECT_EQ(scene.postStepPass(), scene.self_collision_pass.get());
 }
 
 TEST(DrapeSceneYaml, FullSceneWithAllSections) {
@@ -765,7 +775,17 @@ hold:
   lift: [[0, 0, 0, 0], [1.0, 0, 0, 0.2]]
 pinned_regions: [[0.0, 0.0, 0.05, 0.05]]
 model: {name: particle_kes, jacobian: definite_fix, drag: false, settle_damping_per_s: 2.5}
-simulation: {integrator: block_diagonal, policy: thesis, dt_s: 0.0005, max_time_s: 3, trajectory_every: 10}
+simulation: {integrator: block_diagonal, policy: thesis, dt_s: 0.0005, max_time_s: 3, trajectory_every: 10,
+             linear_solver: direct, preconditioner: block_jacobi, cg_warm_start: true, cg_smoothing_steps: 2,
+             cg_smoothing_weight: 0.5, cg_accept_tolerance: 0.1, cg_tolerance: 0.01, max_wall_time_s: 60}
+collision: {self: v2, response: relative, restitution: 0.5, tangential_damping: 0.25, max_passes: 7,
+            d_min_m: 0.002, include_diagonals: false}
+obstacles:
+  contact_distance_m: 0.002
+  friction: 0.3
+  planes: [{point: [0, 0, 0], normal: [0, 0, 2]}]
+  boxes: [{min: [-0.25, -0.25, 0], max: [0.25, 0.25, 0.75]}, {centre: [1, 0, 1], half_extents: [0.01, 0.02, 0.03], yaw_rad: 0.5}]
+  spheres: [{centre: [0, 0, 2], radius_m: 0.05}]
 )";
   const DrapeSceneSpec s = parseDrapeSceneYaml(text);
   EXPECT_EQ(s.textile.name, "napkin");
@@ -779,7 +799,40 @@ simulation: {integrator: block_diagonal, policy: thesis, dt_s: 0.0005, max_time_
   EXPECT_EQ(s.settings.integrator, IntegratorType::kBlockDiagonalEuler);
   EXPECT_EQ(s.settings.policy, StepPolicy::kThesis);
   EXPECT_EQ(s.settings.trajectory_every, 10);
+  EXPECT_EQ(s.settings.solver.kind, LinearSolverKind::kDirect);
+  EXPECT_EQ(s.settings.solver.preconditioner, PreconditionerKind::kBlockJacobi);
+  EXPECT_TRUE(s.settings.solver.warm_start);
+  EXPECT_EQ(s.settings.solver.smoothing_steps, 2);
+  EXPECT_DOUBLE_EQ(s.settings.solver.smoothing_weight, 0.5);
+  EXPECT_DOUBLE_EQ(s.settings.solver.accept_tolerance, 0.1);
+  EXPECT_DOUBLE_EQ(s.settings.solver.relative_tolerance, 0.01);
+  EXPECT_DOUBLE_EQ(s.settings.max_wall_time, 60.0);
+  EXPECT_TRUE(s.self_collision);
+  EXPECT_EQ(s.collision.version, SelfCollisionVersion::kEdge);
+  EXPECT_EQ(s.collision.response, CollisionResponse::kRelative);
+  EXPECT_DOUBLE_EQ(s.collision.restitution, 0.5);
+  EXPECT_DOUBLE_EQ(s.collision.tangential_damping, 0.25);
+  EXPECT_EQ(s.collision.max_passes, 7);
+  EXPECT_DOUBLE_EQ(s.collision.d_min, 0.002);
+  EXPECT_FALSE(s.collision.include_diagonals);
+  EXPECT_DOUBLE_EQ(s.obstacles.options.contact_distance, 0.002);
+  EXPECT_DOUBLE_EQ(s.obstacles.options.friction, 0.3);
+  ASSERT_EQ(s.obstacles.planes.size(), 1u);
+  ASSERT_EQ(s.obstacles.boxes.size(), 2u);
+  ASSERT_EQ(s.obstacles.spheres.size(), 1u);
+  EXPECT_TRUE(s.obstacles.boxes[0].contains(Vec3(0.2, -0.2, 0.7)));
+  EXPECT_FALSE(s.obstacles.boxes[0].contains(Vec3(0.3, 0, 0.5)));
+  // The yawed box: a point along its rotated x axis is inside, the same distance along world x is not.
+  const Vec3 axis(std::cos(0.5), std::sin(0.5), 0);
+  EXPECT_TRUE(s.obstacles.boxes[1].contains(Vec3(1, 0, 1) + 0.009 * axis));
+  EXPECT_DOUBLE_EQ(s.obstacles.spheres[0].radius, 0.05);
   const DrapeScene scene = buildDrapeScene(s);
+  // Obstacles first, then self-collision, in one chain.
+  ASSERT_NE(scene.obstacle_pass, nullptr);
+  ASSERT_NE(scene.self_collision_pass, nullptr);
+  EXPECT_EQ(scene.postStepPass(), scene.pass_chain.get());
+  EXPECT_EQ(scene.obstacle_pass->boxes().size(), 2u);
+  EXPECT_TRUE(scene.obstacle_pass->planes()[0].normal.isApprox(Vec3::UnitZ()));
   EXPECT_EQ(scene.model->numNodes(), 25);
   EXPECT_EQ(scene.pins.nodes.size(), 1u + 1u + 4u);  // two hold points + 2x2 region
   // The first hold point (tip) sits at hold.position.
@@ -828,6 +881,31 @@ TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
   expectRejected(parse("textile: {name: x}"), {"textile"}, "textile without outline");
   expectRejected(parse("material: /nonexistent/material.yaml"), {"material"}, "missing material file");
   expectRejected(parse("spacing_m: [0.01"), {"YAML"}, "unterminated flow sequence");
+  expectRejected(parse("simulation: {linear_solver: gauss}"), {"simulation.linear_solver", "gauss"}, "bad solver");
+  expectRejected(parse("simulation: {preconditioner: ilu}"), {"simulation.preconditioner", "ilu"}, "bad precond");
+  expectRejected(parse("simulation: {cg_warm_start: sometimes}"), {"simulation.cg_warm_start"}, "bad warm start");
+  expectRejected(parse("simulation: {cg_smoothing_steps: -1}"), {"simulation.cg_smoothing_steps"}, "negative sweeps");
+  expectRejected(parse("simulation: {cg_smoothing_weight: 1.5}"), {"simulation.cg_smoothing_weight"}, "weight > 1");
+  expectRejected(parse("simulation: {cg_accept_tolerance: .nan}"), {"simulation.cg_accept_tolerance"}, "NaN accept");
+  expectRejected(parse("simulation: {cg_tolerance: 2}"), {"simulation.cg_tolerance"}, "tolerance >= 1");
+  expectRejected(parse("simulation: {max_wall_time_s: -5}"), {"simulation.max_wall_time_s"}, "negative wall cap");
+  expectRejected(parse("collision: {self: v4}"), {"collision.self", "v4"}, "unknown collision version");
+  expectRejected(parse("collision: v3"), {"collision"}, "collision not a map");
+  expectRejected(parse("collision: {response: bounce}"), {"collision.response"}, "unknown response");
+  expectRejected(parse("collision: {restitution: 1.5}"), {"collision.restitution"}, "restitution > 1");
+  expectRejected(parse("collision: {max_passes: 0}"), {"collision.max_passes"}, "zero passes");
+  expectRejected(parse("obstacles: {friction: -0.1}"), {"obstacles.friction"}, "negative friction");
+  expectRejected(parse("obstacles: {contact_distance_m: .nan}"), {"obstacles.contact_distance_m"}, "NaN contact");
+  expectRejected(parse("obstacles: {planes: {point: [0, 0, 0]}}"), {"obstacles.planes"}, "planes not a list");
+  expectRejected(parse("obstacles: {planes: [{point: [0, 0, 0], normal: [0, 0, 0]}]}"),
+                 {"obstacles.planes[].normal"}, "zero normal");
+  expectRejected(parse("obstacles: {boxes: [{min: [0, 0, 0], max: [1, 0, 1]}]}"), {"obstacles.boxes"}, "flat box");
+  expectRejected(parse("obstacles: {boxes: [{centre: [0, 0, 0]}]}"), {"obstacles.boxes[].half_extents"},
+                 "box without extents");
+  expectRejected(parse("obstacles: {spheres: [{centre: [0, 0, 0], radius_m: -1}]}"),
+                 {"obstacles.spheres[].radius_m"}, "negative radius");
+  expectRejected(parse("obstacles: {spheres: [{centre: [0, 0, 0]}]}"), {"obstacles.spheres[].radius_m"},
+                 "sphere without radius");
   expectRejected(parse("hold: {points: [corner_ul]\nspacing_m: 0.01"), {"YAML"}, "unterminated flow map");
   expectRejected(parse("- just\n- a list"), {"map"}, "top level not a map");
 

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/material.h"
 #include "textile_handling/sim/particle_cloth_model.h"
@@ -20,6 +21,15 @@ struct HoldPoint {
   std::string name;               ///< named point; empty = use `position`
   Vec2 position = Vec2::Zero();
   std::string label() const;      ///< the name, or "x,y" with millimetre precision
+};
+
+/// Obstacles of a scene, in world coordinates (docs/collision.md).
+struct ObstacleSpec {
+  ObstacleOptions options;
+  std::vector<PlaneObstacle> planes;
+  std::vector<BoxObstacle> boxes;
+  std::vector<SphereObstacle> spheres;
+  bool empty() const { return planes.empty() && boxes.empty() && spheres.empty(); }
 };
 
 struct DrapeSceneSpec {
@@ -36,6 +46,11 @@ struct DrapeSceneSpec {
   std::string model = "particle_kes";
   ParticleModelOptions model_options;
   SimulationSettings settings;
+  /// Self-collision after every step (scene key collision.self: off | v1 | v2 | v3). Off by default:
+  /// a scene gets no more model than it needs; the demo scene and the database builder turn v3 on.
+  bool self_collision = false;
+  SelfCollisionOptions collision;
+  ObstacleSpec obstacles;
 };
 
 /// A built scene. The initial pose is the flat horizontal sheet at the holder's height, released at
@@ -49,6 +64,15 @@ struct DrapeScene {
   Index hold_particle = -1;                             ///< particle of the first held point
   std::vector<std::pair<std::string, Index>> named_particles;  ///< named points -> particles
   Vec3 textile_to_world = Vec3::Zero();                 ///< world = (x, y, 0) + this
+  /// Post-step passes built from spec.obstacles and spec.self_collision (null when not used).
+  std::unique_ptr<ObstaclePass> obstacle_pass;
+  std::unique_ptr<SelfCollisionPass> self_collision_pass;
+  std::unique_ptr<PostStepPassChain> pass_chain;  ///< obstacles first, then self-collision
+  /// The pass to give DrapeSimulation::setPostStepPass() (its wall time and events are reported in
+  /// RunResult::post_step_ms / post_step_events); null when the scene has no collision handling.
+  PostStepPass* postStepPass() const;
+  /// Triangulation for countIntersectingTrianglePairs() on the scene's grid.
+  ClothTriangles triangles() const;
 };
 
 /// Builds a scene; throws std::invalid_argument with a clear message on bad input.

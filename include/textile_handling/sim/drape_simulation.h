@@ -42,6 +42,9 @@ struct SimulationSettings {
   // With static pins, kinetic + gravitational energy above the initial total energy (+1 % of
   // M g extent) is also a divergence: energy was created.
   int trajectory_every = 0;       ///< store a frame every k accepted steps (0 = off)
+  /// Wall-time cap of one run() call [s] (0 = none): run() returns with wall_cap_reached, neither at
+  /// rest nor diverged; a later run() continues. For benchmarks and services that must answer.
+  Real max_wall_time = 0;
 };
 
 struct RunResult {
@@ -60,6 +63,9 @@ struct RunResult {
   Real post_step_ms = 0;          ///< total wall time in the post-step pass [ms]
   Real step_ms = 0;               ///< total wall time in integrator steps [ms]
   long post_step_events = 0;      ///< e.g. resolved collisions
+  Real assembly_ms = 0;           ///< total wall time in force/Jacobian/system assembly [ms] (semi_implicit)
+  Real solve_ms = 0;              ///< total wall time in linear solves [ms] (semi_implicit)
+  bool wall_cap_reached = false;  ///< the last run() stopped at settings.max_wall_time
   Index degenerate_terms = 0;     ///< max over steps
 };
 
