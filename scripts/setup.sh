@@ -10,6 +10,7 @@ PACKAGES=(
   ros-base-dev catkin libroscpp-dev libcv-bridge-dev libimage-transport-dev
   libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev
   librosbag-dev librostest-dev python3-rostest ros-message-generation
+  libroslib-dev libvisualization-msgs-dev libtf2-geometry-msgs-dev libtf2-msgs-dev
   libsqlite3-dev libeigen3-dev libopencv-dev libyaml-cpp-dev libgtest-dev googletest
 )
 

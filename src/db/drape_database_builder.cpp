@@ -54,6 +54,9 @@ std::vector<std::pair<std::string, double>> numericSettings(const DrapeBuildConf
       {"model_options.settle_damping_per_s", m.settle_damping},
       {"simulation.cg_max_iterations", s.solver.max_iterations},
       {"simulation.cg_tolerance", s.solver.relative_tolerance},
+      {"simulation.cg_accept_tolerance", s.solver.accept_tolerance},
+      {"simulation.cg_smoothing_steps", s.solver.smoothing_steps},
+      {"simulation.cg_smoothing_weight", s.solver.smoothing_weight},
       {"simulation.dt_s", s.dt},
       {"simulation.dt_min_s", s.dt_min},
       {"simulation.dt_max_s", s.dt_max},
@@ -111,6 +114,11 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c) {
   t += "integrator: " + toString(c.settings.integrator) + "\n";
   t += "policy: " + toString(c.settings.policy) + "\n";
   t += "linear_solver: " + toString(c.settings.solver.kind) + "\n";
+  // Solver details that change the computed shapes (a warm-started or loosely converged CG gives a
+  // slightly different rest shape): without them a rebuild with other solver settings would resume
+  // rows computed with the old ones and mix the two.
+  t += "preconditioner: " + toString(c.settings.solver.preconditioner) + "\n";
+  t += std::string("cg_warm_start: ") + (c.settings.solver.warm_start ? "true" : "false") + "\n";
   t += std::string("jacobian: ") + (c.model_options.jacobian == JacobianMode::kExact ? "exact" : "definite_fix") + "\n";
   t += std::string("forces: ") + (c.model_options.gravity ? "gravity " : "") + (c.model_options.drag ? "drag " : "") +
        (c.model_options.shear ? "shear " : "") + (c.model_options.bending ? "bending" : "") + "\n";
@@ -396,7 +404,7 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
       Job job;
       {
         std::lock_guard<std::mutex> lock(mu);
-        if (stop || next_job >= jobs.size()) return;
+        if (stop || next_job >= jobs.size() || (c.should_stop && c.should_stop())) return;
         job = jobs[next_job++];
       }
       try {

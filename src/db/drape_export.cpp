@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
@@ -81,10 +82,20 @@ std::vector<std::string> exportViewPngs(const HangingDrapeDatabase& db, std::int
   std::filesystem::create_directories(dir, ec);
   if (ec) throw std::runtime_error("cannot create '" + dir + "': " + ec.message());
   std::vector<std::string> paths;
+  std::set<std::string> names;
   const std::string stem = dir + "/sim" + std::to_string(simulation_id);
   for (const StoredView& v : views) {
+    // Whole degrees as three digits (the usual views); other angles keep their fraction (millidegrees),
+    // so that e.g. 0.5 and 1.0 deg do not both become "_view001.png" and overwrite each other.
     char name[64];
-    std::snprintf(name, sizeof name, "_view%03ld.png", std::lround(v.view_angle_deg * 1.0));
+    const double a = v.view_angle_deg;
+    if (std::abs(a - std::round(a)) < 1e-9)
+      std::snprintf(name, sizeof name, "_view%03ld.png", std::lround(a));
+    else
+      std::snprintf(name, sizeof name, "_view%07.3f.png", a);
+    if (!names.insert(name).second)
+      throw std::runtime_error("views of simulation " + std::to_string(simulation_id) + " at angles closer than " +
+                               "0.001 deg would share the file name '" + std::string(name) + "'");
     const std::string p = stem + name;
     if (!cv::imwrite(p, vision::toMat(v.mask))) throw std::runtime_error("cannot write '" + p + "'");
     paths.push_back(p);

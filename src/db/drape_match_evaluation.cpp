@@ -130,15 +130,16 @@ void count(const DrapeMatchIndex& index, const DrapeQueryResult& r, std::size_t 
   }
   const std::size_t pred = r.matches.front().class_index;
   e.confusion[{truth, pred}]++;
-  if (pred == kForeignClass) return;
-  if (pred == truth) ++e.exact;
-  if (index.classesNeighbour(truth, pred, false)) ++e.within_one;
-  if (index.classesNeighbour(truth, pred, true)) ++e.within_one_diagonal;
+  // Top-5 looks at the whole list, also when a foreign entry (a distractor) won.
   for (std::size_t k = 0; k < r.matches.size() && k < 5; ++k)
     if (r.matches[k].class_index == truth) {
       ++e.top5;
       break;
     }
+  if (pred == kForeignClass) return;
+  if (pred == truth) ++e.exact;
+  if (index.classesNeighbour(truth, pred, false)) ++e.within_one;
+  if (index.classesNeighbour(truth, pred, true)) ++e.within_one_diagonal;
 }
 
 }  // namespace
@@ -166,7 +167,11 @@ std::vector<HeldOutPair> renderHeldOutPairs(const DrapeMatchIndex& index, const 
       HeldOutPair p;
       p.shape = s;
       p.truth_class = *truth;
-      p.a1 = slot(rng) * o.stored_step_deg + off(rng);
+      // One draw per statement: the order of the draws must not depend on the compiler's order of
+      // evaluating the operands of one expression (unspecified in C++).
+      const int first_slot = slot(rng);
+      const double first_offset = off(rng);
+      p.a1 = first_slot * o.stored_step_deg + first_offset;
       // The second azimuth also falls between stored views: turn, then re-draw the offset in that slot.
       const double a2 = p.a1 + turn(rng);
       p.a2 = std::floor(a2 / o.stored_step_deg) * o.stored_step_deg + off(rng);

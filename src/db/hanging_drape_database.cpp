@@ -176,53 +176,76 @@ HangingDrapeDatabase::HangingDrapeDatabase(const std::string& path, const Databa
   conn_ = SqliteConnection(path, flags);
   sqlite3_busy_timeout(conn_.handle(), options.busy_timeout_ms);
   conn_.exec("PRAGMA foreign_keys = ON");
-  if (!read_only_) {
-    // WAL: readers never block the writer and a killed writer leaves a consistent file. With WAL,
-    // synchronous = NORMAL keeps every committed transaction across a process crash (only a power
-    // loss can drop the last commits).
-    const std::string mode = conn_.queryText("PRAGMA journal_mode = WAL");
-    if (mode != "wal") throw SqliteError("cannot switch '" + path + "' to WAL mode (got '" + mode + "')", SQLITE_ERROR);
-    conn_.exec("PRAGMA synchronous = NORMAL");
-  }
   initialiseSchema();
 }
 
 HangingDrapeDatabase::~HangingDrapeDatabase() = default;
 
+namespace {
+
+// What an opened file is, read without writing anything.
+struct FileState {
+  std::int64_t objects = 0;   // schema objects other than SQLite's own
+  std::int64_t version = -1;  // schema_version.version (objects > 0)
+};
+
+// Reads the file's state and refuses files that are not (or not yet) drape databases this program can
+// use. Only reads: a refused file is left byte for byte as it was.
+FileState inspectFile(const SqliteConnection& conn, const std::string& path, int supported) {
+  FileState f;
+  f.objects = conn.queryInt("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");  // also checks "not a database"
+  const std::int64_t app_id = conn.queryInt("PRAGMA application_id");
+  if (app_id != 0 && app_id != HangingDrapeDatabase::kApplicationId)
+    throw SchemaVersionError("'" + path + "' is an SQLite file of another application (application_id " +
+                             std::to_string(app_id) + "), not a drape database");
+  if (f.objects == 0) return f;
+  if (conn.queryInt("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'") == 0)
+    throw SchemaVersionError("'" + path + "' has no schema_version table: not a drape database");
+  if (conn.queryInt("SELECT count(*) FROM schema_version") != 1)
+    throw SchemaVersionError("'" + path + "' has a damaged schema_version table (expected exactly one row)");
+  f.version = conn.queryInt("SELECT version FROM schema_version");
+  if (f.version > supported)
+    throw SchemaVersionError("'" + path + "' has schema version " + std::to_string(f.version) +
+                             ", newer than this program supports (" + std::to_string(supported) +
+                             "); use a newer textile_handling");
+  if (f.version < 0) throw SchemaVersionError("'" + path + "' has an invalid schema version " + std::to_string(f.version));
+  return f;
+}
+
+}  // namespace
+
 void HangingDrapeDatabase::initialiseSchema() {
-  const std::int64_t objects =
-      conn_.queryInt("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");  // also checks "not a database"
-  const std::int64_t app_id = conn_.queryInt("PRAGMA application_id");
-  if (objects == 0) {
-    if (read_only_) throw SchemaVersionError("'" + path_ + "' is empty, not a drape database");
-    SqliteTransaction tx(conn_);
-    conn_.exec(kSchemaV1);
-    conn_.exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
-               kNow + ")");
-    conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
-    tx.commit();
+  // 1. Look before writing: foreign, damaged and newer files are refused untouched (switching the
+  //    journal to WAL already rewrites the file header, so it must not happen before this check).
+  FileState f = inspectFile(conn_, path_, kSchemaVersion);
+  if (read_only_) {
+    if (f.objects == 0) throw SchemaVersionError("'" + path_ + "' is empty, not a drape database");
+    if (f.version != kSchemaVersion)
+      throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(f.version) +
+                               " and needs a migration to " + std::to_string(kSchemaVersion) + "; open it read-write");
     return;
   }
-  if (app_id != 0 && app_id != kApplicationId)
-    throw SchemaVersionError("'" + path_ + "' is an SQLite file of another application (application_id " +
-                             std::to_string(app_id) + "), not a drape database");
-  if (conn_.queryInt("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'") == 0)
-    throw SchemaVersionError("'" + path_ + "' has no schema_version table: not a drape database");
-  if (conn_.queryInt("SELECT count(*) FROM schema_version") != 1)
-    throw SchemaVersionError("'" + path_ + "' has a damaged schema_version table (expected exactly one row)");
-  const std::int64_t version = conn_.queryInt("SELECT version FROM schema_version");
-  if (version > kSchemaVersion)
-    throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(version) +
-                             ", newer than this program supports (" + std::to_string(kSchemaVersion) +
-                             "); use a newer textile_handling");
-  if (version < 0) throw SchemaVersionError("'" + path_ + "' has an invalid schema version " + std::to_string(version));
-  if (version == kSchemaVersion) return;
-  if (read_only_)
-    throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(version) +
-                             " and needs a migration to " + std::to_string(kSchemaVersion) + "; open it read-write");
+  // 2. A drape database (or an empty file) opened for writing: WAL, so that readers never block the
+  //    writer and a killed writer leaves a consistent file. With WAL, synchronous = NORMAL keeps every
+  //    committed transaction across a process crash (only a power loss can drop the last commits).
+  const std::string mode = conn_.queryText("PRAGMA journal_mode = WAL");
+  if (mode != "wal") throw SqliteError("cannot switch '" + path_ + "' to WAL mode (got '" + mode + "')", SQLITE_ERROR);
+  conn_.exec("PRAGMA synchronous = NORMAL");
+  if (f.objects > 0 && f.version == kSchemaVersion) return;
+  // 3. Create or migrate under the write lock. Another process may have created or migrated the file
+  //    between the look above and the lock, so look again inside the transaction.
   try {
     SqliteTransaction tx(conn_);
-    for (int v = static_cast<int>(version); v < kSchemaVersion; ++v) {
+    f = inspectFile(conn_, path_, kSchemaVersion);
+    if (f.objects == 0) {
+      conn_.exec(kSchemaV1);
+      conn_.exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
+                 kNow + ")");
+      conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
+      tx.commit();
+      return;
+    }
+    for (int v = static_cast<int>(f.version); v < kSchemaVersion; ++v) {
       migrateSchemaStep(conn_, v);
       conn_.exec("UPDATE schema_version SET version = " + std::to_string(v + 1) + ", written_at = " + kNow);
     }
@@ -231,7 +254,8 @@ void HangingDrapeDatabase::initialiseSchema() {
   } catch (const SchemaVersionError&) {
     throw;
   } catch (const std::exception& e) {
-    throw SchemaVersionError("migrating '" + path_ + "' from schema version " + std::to_string(version) + " to " +
+    if (f.objects == 0) throw;  // creating the schema failed (I/O, locked): not a migration problem
+    throw SchemaVersionError("migrating '" + path_ + "' from schema version " + std::to_string(f.version) + " to " +
                              std::to_string(kSchemaVersion) + " failed (file left unchanged): " + e.what());
   }
 }
@@ -303,25 +327,21 @@ bool sameTextile(const TextileRecord& r, const TextileOutline& o, const Material
 
 }  // namespace
 
-std::int64_t HangingDrapeDatabase::addTextile(const TextileOutline& outline, const Material& material) {
-  requireWritable("addTextile");
+namespace {
+
+void validateTextileInput(const TextileOutline& outline, const Material& material) {
   std::string err;
   if (outline.name.empty()) throw InvalidInputError("textile: empty name");
   if (!validateTextileOutline(outline, &err)) throw InvalidInputError("textile '" + outline.name + "': " + err);
   if (!material.validate(&err)) throw InvalidInputError("textile '" + outline.name + "': material: " + err);
   if (outline.mirrored && !std::isfinite(outline.mirror_x))
     throw InvalidInputError("textile '" + outline.name + "': mirror_x is not finite");
+}
+
+// Inserts a validated textile; the caller holds the lock and an open write transaction.
+std::int64_t insertTextile(SqliteConnection& conn, const TextileOutline& outline, const Material& material) {
   const TextileSymmetry sym = detectSymmetry(outline);
-  const std::string yaml = materialToYaml(material);
-  std::lock_guard<std::mutex> lock(mutex_);
-  {
-    SqliteStatement st = conn_.prepare("SELECT count(*) FROM textiles WHERE name = ?");
-    st.bind(1, outline.name);
-    st.step();
-    if (st.getInt(0) > 0) throw InvalidInputError("a textile named '" + outline.name + "' is already stored");
-  }
-  SqliteTransaction tx(conn_);
-  SqliteStatement ins = conn_.prepare(
+  SqliteStatement ins = conn.prepare(
       std::string("INSERT INTO textiles(name, outline, mirrored, mirror_x, material_name, material_yaml, symmetry, "
                   "symmetry_cx, symmetry_cy, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ") +
       kNow + ")");
@@ -330,31 +350,91 @@ std::int64_t HangingDrapeDatabase::addTextile(const TextileOutline& outline, con
       .bind(3, outline.mirrored ? 1 : 0)
       .bind(4, outline.mirrored ? outline.mirror_x : 0.0)
       .bind(5, material.name)
-      .bind(6, yaml)
+      .bind(6, materialToYaml(material))
       .bind(7, sym.name())
       .bind(8, sym.cx)
       .bind(9, sym.cy);
   ins.run();
-  const std::int64_t id = conn_.lastInsertRowId();
-  SqliteStatement gp = conn_.prepare("INSERT INTO grasp_points(textile_id, name, kind, x, y) VALUES (?, ?, ?, ?, ?)");
+  const std::int64_t id = conn.lastInsertRowId();
+  SqliteStatement gp = conn.prepare("INSERT INTO grasp_points(textile_id, name, kind, x, y) VALUES (?, ?, ?, ?, ?)");
   for (const NamedPoint& p : outline.named_points) {
     gp.bind(1, id).bind(2, p.name).bind(3, p.kind).bind(4, p.position.x()).bind(5, p.position.y());
     gp.run();
     gp.reset();
   }
+  return id;
+}
+
+std::optional<TextileRecord> findTextileByName(const SqliteConnection& conn, const std::string& name) {
+  SqliteStatement st = conn.prepare(std::string(kTextileColumns) + " WHERE name = ?");
+  st.bind(1, name);
+  if (!st.step()) return std::nullopt;
+  return readTextileRow(st, conn);
+}
+
+}  // namespace
+
+std::int64_t HangingDrapeDatabase::addTextile(const TextileOutline& outline, const Material& material) {
+  requireWritable("addTextile");
+  validateTextileInput(outline, material);
+  std::lock_guard<std::mutex> lock(mutex_);
+  // The name check and the insert are one write transaction, so a concurrent writer cannot slip in
+  // between (which used to surface as a raw UNIQUE-constraint SqliteError).
+  SqliteTransaction tx(conn_);
+  {
+    SqliteStatement st = conn_.prepare("SELECT count(*) FROM textiles WHERE name = ?");
+    st.bind(1, outline.name);
+    st.step();
+    if (st.getInt(0) > 0) throw InvalidInputError("a textile named '" + outline.name + "' is already stored");
+  }
+  const std::int64_t id = insertTextile(conn_, outline, material);
   tx.commit();
   return id;
 }
 
 std::int64_t HangingDrapeDatabase::ensureTextile(const TextileOutline& outline, const Material& material) {
-  if (const auto existing = findTextile(outline.name)) {
+  requireWritable("ensureTextile");
+  validateTextileInput(outline, material);
+  std::lock_guard<std::mutex> lock(mutex_);
+  // Look-up and insert in one write transaction: two builders of the same textile started at once
+  // (separate processes) both get the one row instead of one of them failing.
+  SqliteTransaction tx(conn_);
+  if (const auto existing = findTextileByName(conn_, outline.name)) {
     if (!sameTextile(*existing, outline, material))
       throw InvalidInputError("textile '" + outline.name +
                               "' is already stored with a different outline, grasp points or material; store this "
                               "variant under another name");
-    return existing->id;
+    return existing->id;  // nothing written: the transaction rolls back
   }
-  return addTextile(outline, material);
+  const std::int64_t id = insertTextile(conn_, outline, material);
+  tx.commit();
+  return id;
+}
+
+void HangingDrapeDatabase::replaceTextileEntries(std::int64_t textile_id, const Material& material) {
+  requireWritable("replaceTextileEntries");
+  std::string err;
+  if (!material.validate(&err)) throw InvalidInputError("material: " + err);
+  std::lock_guard<std::mutex> lock(mutex_);
+  SqliteTransaction tx(conn_);
+  {
+    SqliteStatement st = conn_.prepare("SELECT count(*) FROM textiles WHERE id = ?");
+    st.bind(1, textile_id);
+    st.step();
+    if (st.getInt(0) == 0) throw NotFoundError("no textile with id " + std::to_string(textile_id));
+  }
+  SqliteStatement up = conn_.prepare("UPDATE textiles SET material_name = ?, material_yaml = ? WHERE id = ?");
+  up.bind(1, material.name).bind(2, materialToYaml(material)).bind(3, textile_id);
+  up.run();
+  // Derived rows first (they reference their sources); views go by ON DELETE CASCADE.
+  SqliteStatement del_derived =
+      conn_.prepare("DELETE FROM simulations WHERE textile_id = ? AND source_simulation_id IS NOT NULL");
+  del_derived.bind(1, textile_id);
+  del_derived.run();
+  SqliteStatement del = conn_.prepare("DELETE FROM simulations WHERE textile_id = ?");
+  del.bind(1, textile_id);
+  del.run();
+  tx.commit();
 }
 
 TextileRecord HangingDrapeDatabase::textile(std::int64_t id) const {
@@ -367,10 +447,7 @@ TextileRecord HangingDrapeDatabase::textile(std::int64_t id) const {
 
 std::optional<TextileRecord> HangingDrapeDatabase::findTextile(const std::string& name) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare(std::string(kTextileColumns) + " WHERE name = ?");
-  st.bind(1, name);
-  if (!st.step()) return std::nullopt;
-  return readTextileRow(st, conn_);
+  return findTextileByName(conn_, name);
 }
 
 std::vector<TextileRecord> HangingDrapeDatabase::textiles() const {
@@ -564,7 +641,9 @@ void HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& res
   }
   std::lock_guard<std::mutex> lock(mutex_);
   SqliteTransaction tx(conn_);
-  SqliteStatement status = conn_.prepare("SELECT status FROM simulations WHERE id = ?");
+  SqliteStatement status = conn_.prepare(
+      "SELECT s.status, s.source, s.source_simulation_id, src.status FROM simulations s "
+      "LEFT JOIN simulations src ON src.id = s.source_simulation_id WHERE s.id = ?");
   SqliteStatement upd = conn_.prepare(
       std::string("UPDATE simulations SET status = 'done', failure_reason = NULL, positions = ?, rest_reached = ?, "
                   "sim_time_s = ?, wall_time_s = ?, render_time_s = ?, hanging_depth_m = ?, steps = ?, "
@@ -579,6 +658,15 @@ void HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& res
     if (!status.step()) throw NotFoundError("no simulation with id " + std::to_string(r.simulation_id));
     if (status.getText(0) == "done")
       throw InvalidInputError("simulation " + std::to_string(r.simulation_id) + " is already done");
+    // A mirror-derived row holds its source's shape: it may only become done with or after its source
+    // (the invariant "derived rows are done only if their source is done").
+    if (status.getText(1) != "identity") {
+      const std::int64_t src = status.getInt(2);
+      if (!ids.count(src) && status.getText(3) != "done")
+        throw InvalidInputError("simulation " + std::to_string(r.simulation_id) + " is derived from source simulation " +
+                                std::to_string(src) + ", which is " + (status.isNull(3) ? "missing" : status.getText(3)) +
+                                "; store the source first or in the same batch");
+    }
     status.reset();
     for (std::size_t v = 0; v < r.views.size(); ++v) {
       ins.bind(1, r.simulation_id)
@@ -663,6 +751,11 @@ std::vector<StoredView> HangingDrapeDatabase::views(std::int64_t simulation_id) 
       "area, mask FROM views WHERE simulation_id = ? ORDER BY view_angle_deg");
   st.bind(1, simulation_id);
   std::vector<StoredView> out;
+  {
+    SqliteStatement exists = conn_.prepare("SELECT 1 FROM simulations WHERE id = ?");
+    exists.bind(1, simulation_id);
+    if (!exists.step()) throw NotFoundError("no simulation with id " + std::to_string(simulation_id));
+  }
   while (st.step()) {
     StoredView v;
     v.id = st.getInt(0);

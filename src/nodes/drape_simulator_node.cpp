@@ -1,7 +1,16 @@
 #include "drape_simulator_node.h"
 
+#include <ros/package.h>
+#include <visualization_msgs/MarkerArray.h>
+
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
+
+#include "textile_handling/BuildProgress.h"
+#include "textile_handling/DatabaseChanged.h"
+#include "textile_handling/db/database_errors.h"
+#include "textile_handling/vision/silhouette_renderer.h"
 
 namespace textile_handling {
 
@@ -13,6 +22,19 @@ Real positiveParam(ros::NodeHandle& nh, const std::string& name, Real fallback) 
   if (!std::isfinite(v) || !(v > 0))
     throw std::runtime_error("parameter ~" + name + " must be a finite positive number");
   return v;
+}
+
+int positiveIntParam(ros::NodeHandle& nh, const std::string& name, int fallback) {
+  int v = fallback;
+  nh.param(name, v, fallback);
+  if (v < 1) throw std::runtime_error("parameter ~" + name + " must be a positive integer");
+  return v;
+}
+
+std::string expandHome(const std::string& path) {
+  if (path.rfind("~/", 0) != 0) return path;
+  const char* home = std::getenv("HOME");
+  return std::string(home ? home : ".") + path.substr(1);
 }
 
 }  // namespace
@@ -32,6 +54,28 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   settings_.dt_max = positiveParam(pnh, "max_dt_s", settings_.dt_max);
   settings_.error_tolerance = positiveParam(pnh, "error_tolerance_m", settings_.error_tolerance);
   settings_.max_time = positiveParam(pnh, "max_sim_time_s", settings_.max_time);
+  settings_.solver.relative_tolerance = positiveParam(pnh, "cg_tolerance", settings_.solver.relative_tolerance);
+  if (!(settings_.solver.relative_tolerance < 1)) throw std::runtime_error("parameter ~cg_tolerance must be < 1");
+  pnh.param("cg_warm_start", settings_.solver.warm_start, settings_.solver.warm_start);
+  std::string preconditioner = toString(settings_.solver.preconditioner);
+  pnh.param<std::string>("cg_preconditioner", preconditioner, preconditioner);
+  std::string self_collision = "v3";
+  pnh.param<std::string>("self_collision", self_collision, self_collision);
+  try {
+    settings_.solver.preconditioner = preconditionerFromString(preconditioner);
+    self_collision_ = self_collision != "off";
+    if (self_collision_) collision_.version = selfCollisionVersionFromString(self_collision);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error(std::string("parameter ~cg_preconditioner / ~self_collision: ") + e.what());
+  }
+  // Optional floor (a plane z = floor_height_m); absent = no floor.
+  double floor_z = 0;
+  if (pnh.getParam("floor_height_m", floor_z)) {
+    if (!std::isfinite(floor_z)) throw std::runtime_error("parameter ~floor_height_m must be finite");
+    PlaneObstacle floor;
+    floor.point = Vec3(0, 0, floor_z);
+    obstacles_.planes.push_back(floor);
+  }
   double damping = model_options_.settle_damping;
   pnh.param("settle_damping_per_s", damping, damping);
   if (!std::isfinite(damping) || damping < 0)
@@ -43,10 +87,248 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
       throw std::runtime_error("parameter ~hold_position_m must be a list of three finite numbers");
     hold_position_ = Vec3(hold[0], hold[1], hold[2]);
   }
+  pnh.param<std::string>("hold_frame", hold_frame_, hold_frame_);
+  if (hold_frame_.empty()) throw std::runtime_error("parameter ~hold_frame must not be empty");
+
+  // ---- database and builds ----
+  registry::RegistryOptions ro;
+  std::string db_path = "~/.ros/textile_handling/drapes.sqlite";
+  pnh.param<std::string>("database_path", db_path, db_path);
+  db_path = expandHome(db_path);
+  if (db_path.empty()) throw std::runtime_error("parameter ~database_path must not be empty");
+  ro.material_dir = ros::package::getPath("textile_handling") + "/data/materials";
+  pnh.param<std::string>("material_dir", ro.material_dir, ro.material_dir);
+  ro.build.spacing = positiveParam(pnh, "database_spacing_m", 0.02);
+  ro.build.lattice_spacing = positiveParam(pnh, "hold_point_spacing_m", 0.08);
+  ro.build.views.count = positiveIntParam(pnh, "views", 36);
+  ro.build.views.step_deg = 360.0 / ro.build.views.count;
+  ro.build.workers = positiveIntParam(pnh, "worker_threads", 2);
+  ro.build.threads_per_simulation = 1;
+  ro.build.hold_height = hold_position_.z();
+  ro.max_hold_points = positiveIntParam(pnh, "max_hold_points", ro.max_hold_points);
+  std::vector<std::string> presets;
+  pnh.param("preset_textiles", presets, presets);
+  bool build_presets = false;
+  pnh.param("build_presets_on_start", build_presets, build_presets);
+  progress_pub_ = pnh.advertise<BuildProgress>("build_progress", 10);
+  changed_pub_ = pnh.advertise<DatabaseChanged>("database_changed", 1, /*latch=*/true);
+  markers_pub_ = pnh.advertise<visualization_msgs::MarkerArray>("rest_shape_markers", 1, /*latch=*/true);
+  std::string default_material = "cotton";
+  pnh.param<std::string>("default_material", default_material, default_material);
+  try {
+    registry_ = std::make_unique<registry::TextileRegistry>(
+        db_path, ro, [this](const registry::BuildProgressEvent& e) { publishProgress(e); },
+        [this](std::int64_t id) { publishChanged(id); });
+    registry_->setDefaultMaterial(registry_->resolveMaterial(default_material, ""));
+  } catch (const std::exception& e) {
+    throw std::runtime_error("database '" + db_path + "' / ~default_material: " + e.what());
+  }
+  for (const auto& name : presets) {
+    std::int64_t id = 0;
+    try {
+      id = registry_->ensurePreset(name);
+      if (build_presets) registry_->ensureBuilt(id);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("parameter ~preset_textiles: '" + name + "': " + e.what());
+    }
+  }
+  publishChanged(0);
+
   simulate_service_ = pnh.advertiseService("simulate_drape", &DrapeSimulatorNode::simulateDrape, this);
+  register_service_ = pnh.advertiseService("register_textile", &DrapeSimulatorNode::registerTextile, this);
+  resimulate_service_ = pnh.advertiseService("resimulate", &DrapeSimulatorNode::resimulate, this);
+  list_service_ = pnh.advertiseService("list_textiles", &DrapeSimulatorNode::listTextiles, this);
+  markers_service_ = pnh.advertiseService("publish_rest_shape", &DrapeSimulatorNode::publishRestShape, this);
   (void)nh;
-  ROS_INFO_NAMED("drape_simulator", "ready: default spacing %.3f m, integrator %s", default_spacing_,
-                 default_integrator_.c_str());
+  ROS_INFO_NAMED("drape_simulator", "ready: database %s, default spacing %.3f m, integrator %s", db_path.c_str(),
+                 default_spacing_, default_integrator_.c_str());
+}
+
+void DrapeSimulatorNode::publishProgress(const registry::BuildProgressEvent& e) {
+  BuildProgress m;
+  m.header.stamp = ros::Time::now();
+  m.textile_id = e.textile_id;
+  m.textile_name = e.textile_name;
+  m.state = e.state;
+  m.done = e.done;
+  m.total = e.total;
+  m.failed = e.failed;
+  m.elapsed_s = e.elapsed_s;
+  m.eta_s = e.eta_s;
+  m.jobs_queued = e.jobs_queued;
+  m.message = e.message;
+  progress_pub_.publish(m);
+  if (e.state == "failed")
+    ROS_WARN_NAMED("drape_simulator", "build of '%s' failed: %s", e.textile_name.c_str(), e.message.c_str());
+  else if (e.state != "running" || e.done == e.total)
+    ROS_INFO_NAMED("drape_simulator", "build of '%s': %s %d/%d %s", e.textile_name.c_str(), e.state.c_str(), e.done,
+                   e.total, e.message.c_str());
+}
+
+void DrapeSimulatorNode::publishChanged(std::int64_t textile_id) {
+  DatabaseChanged m;
+  m.header.stamp = ros::Time::now();
+  m.database_path = registry_ ? registry_->databasePath() : "";
+  m.textile_id = textile_id;
+  if (registry_) {
+    try {
+      for (const auto& t : registry_->list()) {
+        ++m.textiles;
+        m.simulations_done += t.counts.done;
+        m.views += t.counts.views;
+      }
+    } catch (const std::exception& e) {
+      ROS_WARN_THROTTLE_NAMED(5.0, "drape_simulator", "database_changed: cannot count entries: %s", e.what());
+    }
+  }
+  changed_pub_.publish(m);
+}
+
+namespace {
+
+// Converts a request outline (two arrays) and named points; a clear reason on malformed input.
+bool outlineFromArrays(const std::vector<double>& xs, const std::vector<double>& ys, std::vector<Vec2>* out,
+                       std::string* why) {
+  if (xs.size() != ys.size()) {
+    *why = "outline_x and outline_y differ in length";
+    return false;
+  }
+  out->clear();
+  for (size_t i = 0; i < xs.size(); ++i) out->emplace_back(xs[i], ys[i]);
+  return true;
+}
+
+}  // namespace
+
+bool DrapeSimulatorNode::registerTextile(RegisterTextile::Request& req, RegisterTextile::Response& res) {
+  registry::TextileRegistration r;
+  r.name = req.name;
+  std::string why;
+  if (!outlineFromArrays(req.outline_x, req.outline_y, &r.outline, &why)) {
+    res.success = false;
+    res.message = why;
+    ROS_WARN_THROTTLE_NAMED(1.0, "drape_simulator", "register_textile rejected: %s", why.c_str());
+    return true;
+  }
+  for (const auto& p : req.named_points) r.named_points.push_back(NamedPoint{p.name, p.kind, Vec2(p.x, p.y)});
+  r.material_name = req.material;
+  r.material_yaml = req.material_yaml;
+  r.hold_point_spacing = req.hold_point_spacing_m;
+  try {
+    const registry::QueuedBuild q = registry_->registerTextile(r);
+    res.success = true;
+    res.textile_id = q.textile_id;
+    res.queued_simulations = q.hold_points;
+    res.message = "stored; " + std::to_string(q.hold_points) + " hold points queued";
+    ROS_INFO_NAMED("drape_simulator", "registered textile '%s' as id %ld, %d hold points queued", r.name.c_str(),
+                   static_cast<long>(q.textile_id), q.hold_points);
+  } catch (const std::exception& e) {
+    res.success = false;
+    res.message = e.what();
+    ROS_WARN_THROTTLE_NAMED(1.0, "drape_simulator", "register_textile rejected: %s", e.what());
+  }
+  return true;
+}
+
+bool DrapeSimulatorNode::resimulate(Resimulate::Request& req, Resimulate::Response& res) {
+  registry::ResimulationRequest r;
+  r.textile_id = req.textile_id;
+  r.material_name = req.material;
+  r.material_yaml = req.material_yaml;
+  r.spacing = req.spacing_m;
+  r.model = req.model;
+  try {
+    const registry::QueuedBuild q = registry_->resimulate(r);
+    res.success = true;
+    res.queued_simulations = q.hold_points;
+    res.message = "queued " + std::to_string(q.hold_points) + " hold points";
+  } catch (const std::exception& e) {
+    res.success = false;
+    res.message = e.what();
+    ROS_WARN_THROTTLE_NAMED(1.0, "drape_simulator", "resimulate rejected: %s", e.what());
+  }
+  return true;
+}
+
+bool DrapeSimulatorNode::listTextiles(ListTextiles::Request&, ListTextiles::Response& res) {
+  try {
+    for (const auto& t : registry_->list()) {
+      TextileInfo info;
+      info.id = t.record.id;
+      info.name = t.record.outline.name;
+      info.material = t.record.material.name;
+      for (const Vec2& v : fullOutline(t.record.outline)) {
+        info.outline_x.push_back(v.x());
+        info.outline_y.push_back(v.y());
+      }
+      for (const auto& p : t.record.outline.named_points) {
+        NamedPoint2D q;
+        q.name = p.name;
+        q.kind = p.kind;
+        q.x = p.position.x();
+        q.y = p.position.y();
+        info.named_points.push_back(q);
+      }
+      info.symmetry = t.record.symmetry.name();
+      info.simulations_done = t.counts.done;
+      info.simulations_pending = t.counts.pending;
+      info.simulations_failed = t.counts.failed;
+      info.views = t.counts.views;
+      res.textiles.push_back(info);
+    }
+  } catch (const std::exception& e) {
+    ROS_ERROR_THROTTLE_NAMED(1.0, "drape_simulator", "list_textiles: %s", e.what());
+    return false;
+  }
+  return true;
+}
+
+bool DrapeSimulatorNode::publishRestShape(PublishRestShape::Request& req, PublishRestShape::Response& res) {
+  res.success = false;
+  if (!std::isfinite(req.hold_x) || !std::isfinite(req.hold_y)) {
+    res.message = "hold_x and hold_y must be finite";
+    return true;
+  }
+  try {
+    const registry::StoredRestShape shape = registry_->restShape(req.textile_id, Vec2(req.hold_x, req.hold_y));
+    visualization_msgs::MarkerArray arr;
+    visualization_msgs::Marker del;
+    del.action = visualization_msgs::Marker::DELETEALL;
+    arr.markers.push_back(del);
+    visualization_msgs::Marker m;
+    m.header.frame_id = req.frame_id.empty() ? hold_frame_ : req.frame_id;
+    m.header.stamp = ros::Time::now();
+    m.ns = "rest_shape";
+    m.id = 0;
+    m.type = visualization_msgs::Marker::TRIANGLE_LIST;
+    m.action = visualization_msgs::Marker::ADD;
+    m.pose.orientation.w = 1.0;
+    m.scale.x = m.scale.y = m.scale.z = 1.0;
+    m.color.r = 0.2f;
+    m.color.g = 0.5f;
+    m.color.b = 0.9f;
+    m.color.a = 0.9f;
+    // Positions relative to the held particle (the marker frame is the hold frame).
+    const Vec3 hold = node3(shape.positions, shape.held_particle);
+    for (const auto& tri : shape.triangles)
+      for (Index k : tri) {
+        geometry_msgs::Point p;
+        const Vec3 q = node3(shape.positions, k) - hold;
+        p.x = q.x();
+        p.y = q.y();
+        p.z = q.z();
+        m.points.push_back(p);
+      }
+    arr.markers.push_back(m);
+    markers_pub_.publish(arr);
+    res.success = true;
+    res.simulation_id = shape.simulation_id;
+    res.message = "published " + std::to_string(shape.triangles.size()) + " triangles";
+  } catch (const std::exception& e) {
+    res.message = e.what();
+    ROS_WARN_THROTTLE_NAMED(1.0, "drape_simulator", "publish_rest_shape rejected: %s", e.what());
+  }
+  return true;
 }
 
 bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrape::Response& res) {
@@ -76,6 +358,9 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
   spec.hold_position = hold_position_;
   spec.settings = settings_;
   spec.model_options = model_options_;
+  spec.self_collision = self_collision_;
+  spec.collision = collision_;
+  spec.obstacles = obstacles_;
   if (!req.integrator.empty()) {
     try {
       spec.settings.integrator = integratorFromString(req.integrator);
@@ -90,6 +375,7 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
     return reject(e.what());
   }
   DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  sim.setPostStepPass(scene.postStepPass());
   const RunResult r = sim.run();
   auto& s = res.summary;
   s.textile = spec.textile.name;
@@ -106,6 +392,9 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
   s.rejected_steps = r.rejected_steps;
   s.wall_time_s = r.wall_time;
   s.hanging_depth_m = hangingDepth(scene, sim.positions());
+  s.self_collision = spec.self_collision ? toString(spec.collision.version) : "off";
+  s.collision_events = r.post_step_events;
+  s.intersecting_pairs = countIntersectingTrianglePairs(scene.triangles(), sim.positions());
   res.success = !r.diverged;
   res.message = r.diverged ? "simulation diverged: " + r.divergence_reason
                            : (r.rest_reached ? "rest reached" : "time cap reached before rest");

@@ -163,6 +163,32 @@ TEST(DrapeDatabaseBuilder, RebuildResumesAndSkipsDoneSimulations) {
   EXPECT_NE(DrapeDatabaseBuilder::parametersText(other), DrapeDatabaseBuilder::parametersText(smallSquare()));
 }
 
+TEST(DrapeDatabaseBuilder, ParameterTextCoversTheSolverSettingsThatChangeShapes) {
+  // Rows are found again by their parameter text; a setting missing from it lets a rebuild with other
+  // settings resume (and mix in) rows computed with the old ones.
+  const DrapeBuildConfig base = smallSquare();
+  const std::string t0 = DrapeDatabaseBuilder::parametersText(base);
+  std::vector<std::pair<std::string, DrapeBuildConfig>> variants;
+  DrapeBuildConfig c = base;
+  c.settings.solver.warm_start = !base.settings.solver.warm_start;
+  variants.emplace_back("warm start", c);
+  c = base;
+  c.settings.solver.preconditioner = base.settings.solver.preconditioner == PreconditionerKind::kTwoLevel
+                                         ? PreconditionerKind::kBlockJacobi
+                                         : PreconditionerKind::kTwoLevel;
+  variants.emplace_back("preconditioner", c);
+  c = base;
+  c.settings.solver.accept_tolerance = base.settings.solver.accept_tolerance + 0.01;
+  variants.emplace_back("accept tolerance", c);
+  c = base;
+  c.settings.solver.smoothing_steps = base.settings.solver.smoothing_steps + 1;
+  variants.emplace_back("smoothing steps", c);
+  c = base;
+  c.settings.solver.relative_tolerance = base.settings.solver.relative_tolerance * 2;
+  variants.emplace_back("CG tolerance", c);
+  for (const auto& [what, v] : variants) EXPECT_NE(DrapeDatabaseBuilder::parametersText(v), t0) << what;
+}
+
 TEST(DrapeDatabaseBuilder, ParallelWorkersGiveTheSameShapes) {
   TempDatabase t1("w1"), t2("w2");
   HangingDrapeDatabase db1(t1.path()), db2(t2.path());

@@ -4,12 +4,15 @@
 
 #include <unistd.h>
 
+#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
+#include <set>
 #include <thread>
 
 #include "textile_handling/db/blob_codec.h"
@@ -477,4 +480,181 @@ TEST(HangingDrapeDatabase, ConcurrentWritersThroughOneHandle) {
   EXPECT_EQ(db.counts().done, 8);
   EXPECT_EQ(db.counts().views, 16);
   EXPECT_TRUE(db.consistencyProblems().empty());
+}
+
+// ---- review fixes -------------------------------------------------------------------------------
+
+namespace {
+std::string fileBytes(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+TEST(HangingDrapeDatabase, RefusedFilesAreNotSwitchedToWal) {
+  // Opening read-write used to switch the journal to WAL before checking what the file is, which
+  // rewrote the header of foreign and newer files that it then refused.
+  TempDatabase other("foreign_rollback");
+  {
+    SqliteConnection c(other.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
+    c.exec("CREATE TABLE recipes(name TEXT); INSERT INTO recipes VALUES ('soup')");
+  }
+  const std::string before = fileBytes(other.path());
+  EXPECT_THROW(HangingDrapeDatabase db(other.path()), SchemaVersionError);
+  EXPECT_TRUE(fileBytes(other.path()) == before) << "the refused file was modified";
+  EXPECT_FALSE(std::filesystem::exists(other.path() + "-wal"));
+  {
+    SqliteConnection c(other.path(), SqliteConnection::kReadOnly);
+    EXPECT_EQ(c.queryText("PRAGMA journal_mode"), "delete");
+  }
+
+  TempDatabase future("future_rollback");
+  { HangingDrapeDatabase db(future.path()); }
+  rawExec(future.path(), "PRAGMA journal_mode = DELETE; UPDATE schema_version SET version = 9");
+  const std::string fbefore = fileBytes(future.path());
+  EXPECT_THROW(HangingDrapeDatabase db(future.path()), SchemaVersionError);
+  EXPECT_TRUE(fileBytes(future.path()) == fbefore) << "the refused file was modified";
+  SqliteConnection c(future.path(), SqliteConnection::kReadOnly);
+  EXPECT_EQ(c.queryText("PRAGMA journal_mode"), "delete");
+}
+
+TEST(HangingDrapeDatabase, EmptyFileOfAnotherApplicationIsRefused) {
+  TempDatabase t("foreign_empty");
+  {
+    SqliteConnection c(t.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
+    c.exec("PRAGMA application_id = 1234");  // no tables, but claimed by another program
+  }
+  EXPECT_THROW(HangingDrapeDatabase db(t.path()), SchemaVersionError);
+  SqliteConnection c(t.path(), SqliteConnection::kReadOnly);
+  EXPECT_EQ(c.queryInt("SELECT count(*) FROM sqlite_master"), 0);
+  EXPECT_EQ(c.queryInt("PRAGMA application_id"), 1234);
+}
+
+TEST(HangingDrapeDatabase, ConcurrentOpeningOfANewFileCreatesOneSchema) {
+  // Several processes (here: handles on their own connections) opening a fresh path at once: the
+  // check "file is empty" and the creation of the schema must be one atomic step.
+  for (int round = 0; round < 5; ++round) {
+    TempDatabase t("concurrent_create_" + std::to_string(round));
+    std::vector<std::thread> pool;
+    std::vector<std::string> errors(6);
+    std::atomic<int> ready{0};
+    for (int w = 0; w < 6; ++w)
+      pool.emplace_back([&, w] {
+        ++ready;
+        while (ready.load() < 6) std::this_thread::yield();
+        try {
+          HangingDrapeDatabase db(t.path());
+          if (db.schemaVersion() != 1) errors[static_cast<std::size_t>(w)] = "wrong version";
+        } catch (const std::exception& e) {
+          errors[static_cast<std::size_t>(w)] = e.what();
+        }
+      });
+    for (auto& th : pool) th.join();
+    for (const auto& e : errors) EXPECT_TRUE(e.empty()) << e;
+    SqliteConnection c(t.path(), SqliteConnection::kReadOnly);
+    EXPECT_EQ(c.queryInt("SELECT count(*) FROM schema_version"), 1);
+  }
+}
+
+TEST(HangingDrapeDatabase, ConcurrentEnsureTextileGivesOneRow) {
+  // Two builders of the same textile started at once (separate handles, as separate processes) must
+  // both get the one stored row; neither may fail with "already stored" or a UNIQUE violation.
+  for (int round = 0; round < 5; ++round) {
+    TempDatabase t("concurrent_textile_" + std::to_string(round));
+    { HangingDrapeDatabase db(t.path()); }
+    std::vector<std::int64_t> ids(6, -1);
+    std::vector<std::string> errors(6);
+    std::atomic<int> ready{0};
+    std::vector<std::thread> pool;
+    for (int w = 0; w < 6; ++w)
+      pool.emplace_back([&, w] {
+        try {
+          HangingDrapeDatabase db(t.path());
+          ++ready;
+          while (ready.load() < 6) std::this_thread::yield();
+          ids[static_cast<std::size_t>(w)] = db.ensureTextile(presetTextile("towel"), Material::cotton());
+        } catch (const std::exception& e) {
+          errors[static_cast<std::size_t>(w)] = e.what();
+          ++ready;
+        }
+      });
+    for (auto& th : pool) th.join();
+    for (const auto& e : errors) EXPECT_TRUE(e.empty()) << e;
+    for (std::int64_t id : ids) EXPECT_EQ(id, ids[0]);
+    HangingDrapeDatabase db(t.path());
+    EXPECT_EQ(db.counts().textiles, 1);
+    EXPECT_EQ(db.findTextile("towel")->outline.named_points.size(), presetTextile("towel").named_points.size());
+  }
+}
+
+TEST(HangingDrapeDatabase, DerivedRowCannotBeStoredBeforeItsSource) {
+  TempDatabase t("derived_first");
+  HangingDrapeDatabase db(t.path());
+  const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
+  NewSimulation src = newRow(tex, Vec2(0.0, 0.0));
+  NewSimulation mirror = newRow(tex, Vec2(0.64, 0.0));
+  mirror.source = MirrorKind::kMirrorX;
+  mirror.source_index = 0;
+  const auto ids = db.addSimulations({src, mirror});
+  // The mirror alone, while its source is pending: refused, nothing written.
+  try {
+    db.storeResults({makeResult(ids[1])});
+    FAIL() << "stored a derived row before its source";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("source simulation " + std::to_string(ids[0])), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(db.simulation(ids[1]).status, SimulationStatus::kPending);
+  EXPECT_EQ(db.counts().views, 0);
+  // Also refused while the source is failed.
+  db.markFailed(ids[0], "diverged");
+  EXPECT_THROW(db.storeResults({makeResult(ids[1])}), InvalidInputError);
+  EXPECT_TRUE(db.consistencyProblems().empty());
+  // In one batch with its source (either order), or after it: accepted.
+  db.storeResults({makeResult(ids[1]), makeResult(ids[0])});
+  EXPECT_EQ(db.counts().done, 2);
+  EXPECT_TRUE(db.consistencyProblems().empty());
+}
+
+TEST(HangingDrapeDatabase, UnknownSimulationIdsAreReportedAsSuch) {
+  TempDatabase t("unknown_ids");
+  HangingDrapeDatabase db(t.path());
+  const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
+  const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1))});
+  EXPECT_TRUE(db.views(ids[0]).empty());  // pending: no views yet, but it exists
+  try {
+    db.views(ids[0] + 100);
+    FAIL() << "views of an unknown simulation returned";
+  } catch (const NotFoundError& e) {
+    EXPECT_NE(std::string(e.what()).find("no simulation with id"), std::string::npos) << e.what();
+  }
+  try {
+    exportViewPngs(db, ids[0] + 100, t.path() + "_png");
+    FAIL() << "exported an unknown simulation";
+  } catch (const NotFoundError& e) {
+    EXPECT_NE(std::string(e.what()).find("no simulation with id"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(std::filesystem::exists(t.path() + "_png"));
+}
+
+TEST(HangingDrapeDatabase, ViewPngsOfFractionalAnglesDoNotOverwriteEachOther) {
+  TempDatabase t("png_names");
+  HangingDrapeDatabase db(t.path());
+  const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
+  const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1))});
+  SimulationResult r = makeResult(ids[0], 4);
+  r.views[0].view_angle_deg = 0.0;
+  r.views[1].view_angle_deg = 0.5;  // rounded to whole degrees, 0.5 and 1.0 (and 1.4) named the same file
+  r.views[2].view_angle_deg = 1.0;
+  r.views[3].view_angle_deg = 1.4;
+  db.storeResults({r});
+  const std::string dir = t.path() + "_png";
+  const auto paths = exportViewPngs(db, ids[0], dir);
+  ASSERT_EQ(paths.size(), 5u);
+  std::set<std::string> unique(paths.begin(), paths.end());
+  EXPECT_EQ(unique.size(), 5u);
+  for (const auto& p : paths) EXPECT_TRUE(std::filesystem::exists(p)) << p;
+  std::size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 5u);
+  std::filesystem::remove_all(dir);
 }

@@ -1,11 +1,20 @@
-// rostest: the drape_simulator node answers simulate_drape, rejects malformed requests with an error
-// response, and keeps running afterwards.
+// rostest: the drape_simulator node answers simulate_drape; register_textile -> build on the worker ->
+// list_textiles -> resimulate -> publish_rest_shape on a temporary database, with progress and
+// database_changed topics; malformed requests get error responses and the node keeps running.
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <cmath>
 #include <limits>
+#include <mutex>
 
+#include "textile_handling/BuildProgress.h"
+#include "textile_handling/DatabaseChanged.h"
+#include "textile_handling/ListTextiles.h"
+#include "textile_handling/PublishRestShape.h"
+#include "textile_handling/RegisterTextile.h"
+#include "textile_handling/Resimulate.h"
 #include "textile_handling/SimulateDrape.h"
 
 namespace {
@@ -82,6 +91,184 @@ TEST(DrapeSimulatorNode, RejectsMalformedRequestsAndStaysUp) {
   ok.request.hold_xy = {0.15, 0.15};
   ASSERT_TRUE(call(ok));
   EXPECT_TRUE(ok.response.success) << ok.response.message;
+}
+
+namespace {
+
+template <typename Srv>
+bool callService(const std::string& name, Srv& srv) {
+  const std::string full = "/drape_simulator/" + name;
+  if (!ros::service::waitForService(full, ros::Duration(30))) return false;
+  return ros::service::call(full, srv);
+}
+
+textile_handling::RegisterTextile napkinRequest(const std::string& name) {
+  textile_handling::RegisterTextile srv;
+  srv.request.name = name;
+  srv.request.outline_x = {0, 0.3, 0.3, 0};
+  srv.request.outline_y = {0, 0, 0.3, 0.3};
+  textile_handling::NamedPoint2D c;
+  c.name = "corner_a";
+  c.kind = "corner";
+  srv.request.named_points.push_back(c);
+  textile_handling::NamedPoint2D g;
+  g.name = "middle";
+  g.kind = "grasp";
+  g.x = g.y = 0.15;
+  srv.request.named_points.push_back(g);
+  srv.request.material = "cotton";
+  return srv;
+}
+
+// Polls list_textiles until `name` has `done` finished simulations and nothing pending, or times out.
+bool waitForBuild(const std::string& name, int done, double timeout_s, textile_handling::TextileInfo* info) {
+  const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
+  while (ros::WallTime::now() < end) {
+    textile_handling::ListTextiles list;
+    if (callService("list_textiles", list))
+      for (const auto& t : list.response.textiles)
+        if (t.name == name && t.simulations_done == done && t.simulations_pending == 0) {
+          *info = t;
+          return true;
+        }
+    ros::WallDuration(0.5).sleep();
+  }
+  return false;
+}
+
+struct TopicLog {
+  std::mutex mu;
+  std::vector<textile_handling::BuildProgress> progress;
+  std::vector<textile_handling::DatabaseChanged> changed;
+  std::vector<visualization_msgs::MarkerArray> markers;
+};
+
+}  // namespace
+
+TEST(DrapeSimulatorNode, RegisterResimulateListOnATemporaryDatabase) {
+  TopicLog log;
+  ros::NodeHandle nh;
+  ros::Subscriber ps = nh.subscribe<textile_handling::BuildProgress>(
+      "/drape_simulator/build_progress", 100, [&](const textile_handling::BuildProgress::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(log.mu);
+        log.progress.push_back(*m);
+      });
+  ros::Subscriber cs = nh.subscribe<textile_handling::DatabaseChanged>(
+      "/drape_simulator/database_changed", 10, [&](const textile_handling::DatabaseChanged::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(log.mu);
+        log.changed.push_back(*m);
+      });
+  ros::Subscriber ms = nh.subscribe<visualization_msgs::MarkerArray>(
+      "/drape_simulator/rest_shape_markers", 10, [&](const visualization_msgs::MarkerArray::ConstPtr& m) {
+        std::lock_guard<std::mutex> l(log.mu);
+        log.markers.push_back(*m);
+      });
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  ros::WallDuration(1.0).sleep();  // let the subscriptions connect
+
+  auto reg = napkinRequest("napkin");
+  const ros::WallTime t0 = ros::WallTime::now();
+  ASSERT_TRUE(callService("register_textile", reg));
+  ASSERT_TRUE(reg.response.success) << reg.response.message;
+  EXPECT_LT((ros::WallTime::now() - t0).toSec(), 10.0);  // returns at once, the build runs behind
+  EXPECT_GT(reg.response.textile_id, 0);
+  EXPECT_EQ(reg.response.queued_simulations, 9);  // 0.3 m square, 0.15 m lattice
+
+  textile_handling::TextileInfo info;
+  ASSERT_TRUE(waitForBuild("napkin", 9, 90.0, &info));
+  EXPECT_EQ(info.id, reg.response.textile_id);
+  EXPECT_EQ(info.material, "cotton");
+  EXPECT_EQ(info.named_points.size(), 2u);
+  EXPECT_EQ(info.symmetry, "xy");
+  EXPECT_EQ(info.views, 9 * 4);
+  EXPECT_EQ(info.outline_x.size(), 4u);
+
+  textile_handling::PublishRestShape shape;
+  shape.request.textile_id = info.id;
+  ASSERT_TRUE(callService("publish_rest_shape", shape));
+  EXPECT_TRUE(shape.response.success) << shape.response.message;
+  ros::WallDuration(1.0).sleep();
+  {
+    // 7 x 7 particles at d = 5 cm: 6 x 6 cells, 2 triangles each.
+    std::lock_guard<std::mutex> l(log.mu);
+    ASSERT_FALSE(log.markers.empty());
+    ASSERT_EQ(log.markers.back().markers.size(), 2u);
+    EXPECT_EQ(log.markers.back().markers[1].points.size(), 3u * 72u);
+  }
+
+  textile_handling::Resimulate resim;
+  resim.request.textile_id = info.id;
+  resim.request.spacing_m = 0.03;
+  ASSERT_TRUE(callService("resimulate", resim));
+  ASSERT_TRUE(resim.response.success) << resim.response.message;
+  EXPECT_EQ(resim.response.queued_simulations, 9);
+  ros::WallDuration(1.0).sleep();
+  ASSERT_TRUE(waitForBuild("napkin", 9, 90.0, &info));
+  ASSERT_TRUE(callService("publish_rest_shape", shape));
+  EXPECT_TRUE(shape.response.success) << shape.response.message;
+  ros::WallDuration(1.0).sleep();
+
+  std::lock_guard<std::mutex> l(log.mu);
+  bool saw_done = false, saw_running = false;
+  for (const auto& p : log.progress) {
+    saw_done = saw_done || (p.state == "done" && p.textile_name == "napkin" && p.done == p.total);
+    saw_running = saw_running || p.state == "running";
+  }
+  EXPECT_TRUE(saw_running);
+  EXPECT_TRUE(saw_done);
+  ASSERT_FALSE(log.changed.empty());
+  EXPECT_GE(log.changed.back().simulations_done, 9);
+  ASSERT_FALSE(log.markers.empty());
+  const auto& arr = log.markers.back();
+  ASSERT_EQ(arr.markers.size(), 2u);  // DELETEALL + the mesh
+  EXPECT_EQ(arr.markers[1].type, visualization_msgs::Marker::TRIANGLE_LIST);
+  EXPECT_EQ(arr.markers[1].points.size() % 3, 0u);
+  // Rebuilt at d = 3 cm: 11 x 11 particles, 10 x 10 cells, 2 triangles each.
+  EXPECT_EQ(arr.markers[1].points.size(), 3u * 200u);
+}
+
+TEST(DrapeSimulatorNode, MalformedRegistrationsAreRejectedAndTheDatabaseIsUntouched) {
+  textile_handling::ListTextiles before;
+  ASSERT_TRUE(callService("list_textiles", before));
+
+  auto bowtie = napkinRequest("bowtie");
+  bowtie.request.outline_x = {0, 0.3, 0.3, 0};
+  bowtie.request.outline_y = {0, 0.3, 0, 0.3};
+  bowtie.request.named_points.clear();
+  ASSERT_TRUE(callService("register_textile", bowtie));
+  EXPECT_FALSE(bowtie.response.success);
+  EXPECT_NE(bowtie.response.message.find("outline"), std::string::npos) << bowtie.response.message;
+
+  auto ragged = napkinRequest("ragged");
+  ragged.request.outline_y.pop_back();
+  ASSERT_TRUE(callService("register_textile", ragged));
+  EXPECT_FALSE(ragged.response.success);
+
+  auto nan_spacing = napkinRequest("nan_spacing");
+  nan_spacing.request.hold_point_spacing_m = std::numeric_limits<double>::quiet_NaN();
+  ASSERT_TRUE(callService("register_textile", nan_spacing));
+  EXPECT_FALSE(nan_spacing.response.success);
+
+  auto bad_material = napkinRequest("bad_material");
+  bad_material.request.material_yaml = "name: x\nareal_density: .nan\n";
+  ASSERT_TRUE(callService("register_textile", bad_material));
+  EXPECT_FALSE(bad_material.response.success);
+
+  textile_handling::Resimulate unknown;
+  unknown.request.textile_id = 987654;
+  ASSERT_TRUE(callService("resimulate", unknown));
+  EXPECT_FALSE(unknown.response.success);
+  EXPECT_NE(unknown.response.message.find("987654"), std::string::npos) << unknown.response.message;
+
+  textile_handling::PublishRestShape no_shape;
+  no_shape.request.textile_id = 987654;
+  ASSERT_TRUE(callService("publish_rest_shape", no_shape));
+  EXPECT_FALSE(no_shape.response.success);
+
+  textile_handling::ListTextiles after;
+  ASSERT_TRUE(callService("list_textiles", after));
+  EXPECT_EQ(after.response.textiles.size(), before.response.textiles.size());
 }
 
 int main(int argc, char** argv) {

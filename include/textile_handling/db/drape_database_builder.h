@@ -61,6 +61,9 @@ struct DrapeBuildConfig {
   bool progress = true;             ///< progress bar on stderr
   /// Called after every finished simulation (from a worker thread, serialised).
   std::function<void(int done, int total)> on_progress;
+  /// Polled before each simulation starts: true = finish the running simulations and return (the
+  /// build is resumable). Used by services that must shut down promptly.
+  std::function<bool()> should_stop;
 
   /// The fastest robust settings measured for database builds (docs/database.md): semi-implicit Euler
   /// with the simulator's default linear solver, error-controlled steps (tolerance 0.1 mm, dt_max

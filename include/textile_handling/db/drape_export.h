@@ -31,9 +31,11 @@ void writePly(const std::string& path, const VecX& positions, const std::vector<
 /// Writes a Wavefront OBJ (v / f lines, 1-based). Throws std::runtime_error on I/O errors.
 void writeObj(const std::string& path, const VecX& positions, const std::vector<vision::Triangle>& triangles);
 
-/// Writes every stored view of a simulation as DIR/sim<ID>_view<AAA>.png (255 = textile, canonical
-/// resolution) plus DIR/sim<ID>_views.png, a contact sheet of all views scaled by `sheet_scale`.
-/// Creates DIR. Returns the written paths. Throws std::runtime_error on I/O errors.
+/// Writes every stored view of a simulation as DIR/sim<ID>_view<AAA>.png (AAA: whole degrees, three
+/// digits; a fractional angle is written with three decimals, e.g. _view012.500.png), 255 = textile, at
+/// the canonical resolution, plus DIR/sim<ID>_views.png, a contact sheet of all views scaled by
+/// `sheet_scale`. Creates DIR. Returns the written paths. Throws NotFoundError for an unknown or
+/// unfinished simulation, std::runtime_error on I/O errors.
 std::vector<std::string> exportViewPngs(const HangingDrapeDatabase& db, std::int64_t simulation_id,
                                         const std::string& dir, int sheet_scale = 2);
 

@@ -141,11 +141,16 @@ class HangingDrapeDatabase {
   /// Adds a textile (name unique). Throws InvalidInputError for an invalid outline/material or a taken name.
   std::int64_t addTextile(const TextileOutline& outline, const Material& material);
   /// The id of an identical stored textile (same name, outline, named points and material), or adds it.
-  /// Throws InvalidInputError if a textile of that name exists with a different definition.
+  /// Look-up and insert are one write transaction (concurrent callers get the same row). Throws
+  /// InvalidInputError for invalid input or if a textile of that name exists with a different definition.
   std::int64_t ensureTextile(const TextileOutline& outline, const Material& material);
   TextileRecord textile(std::int64_t id) const;  ///< throws NotFoundError
   std::optional<TextileRecord> findTextile(const std::string& name) const;
   std::vector<TextileRecord> textiles() const;
+  /// For a rebuild: in one transaction, sets the textile's material and deletes all its simulations
+  /// (their views go with them). Throws NotFoundError for an unknown id, InvalidInputError for an
+  /// invalid material (nothing changed then).
+  void replaceTextileEntries(std::int64_t textile_id, const Material& material);
 
   // ---- simulations ----------------------------------------------------------------------------
   /// Plans simulations in one transaction. A row with the same (textile, parameters, hold point) is
@@ -158,7 +163,8 @@ class HangingDrapeDatabase {
   std::vector<SimulationRecord> simulations(std::int64_t textile_id = 0,
                                             std::optional<SimulationStatus> status = std::nullopt) const;
   /// Stores results atomically: all rows become done with their positions and views, or (on any error)
-  /// nothing changes. Rows must exist and not be done. Throws InvalidInputError / NotFoundError.
+  /// nothing changes. Rows must exist and not be done; a mirror-derived row needs its source done
+  /// already or in the same batch. Throws InvalidInputError / NotFoundError.
   void storeResults(const std::vector<SimulationResult>& results);
   /// Marks a row failed with a reason (not allowed for done rows).
   void markFailed(std::int64_t id, const std::string& reason);
@@ -166,7 +172,8 @@ class HangingDrapeDatabase {
   int resetFailed(std::int64_t textile_id = 0);
   /// Final positions of a done simulation. Throws NotFoundError, BlobFormatError.
   VecX positions(std::int64_t simulation_id) const;
-  /// Views of a simulation ordered by angle (empty unless done). Throws BlobFormatError.
+  /// Views of a simulation ordered by angle (empty unless done). Throws NotFoundError for an unknown
+  /// id, BlobFormatError for a damaged mask.
   std::vector<StoredView> views(std::int64_t simulation_id) const;
 
   // ---- health ---------------------------------------------------------------------------------

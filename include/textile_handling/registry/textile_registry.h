@@ -1,0 +1,157 @@
+// TextileRegistry: the ROS-free core behind the drape_simulator node's register_textile, resimulate and
+// list_textiles services. It validates requests at the boundary (nothing is written for a bad request),
+// stores textiles in the hanging-drape database and runs their database builds on one worker thread,
+// FIFO, reporting progress and database changes through callbacks. See docs/ros.md.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "textile_handling/db/drape_database_builder.h"
+#include "textile_handling/db/hanging_drape_database.h"
+
+namespace textile_handling {
+namespace registry {
+
+/// A new textile as a client describes it.
+struct TextileRegistration {
+  std::string name;
+  std::vector<Vec2> outline;              ///< full outline polygon, textile frame [m]
+  std::vector<NamedPoint> named_points;   ///< corners and predefined grasp points
+  std::string material_name;              ///< a name known to the registry (empty = default material)
+  std::string material_yaml;              ///< or a whole material as YAML text (wins over the name)
+  Real hold_point_spacing = 0;            ///< lattice spacing of the hold points [m]; 0 = default
+};
+
+/// A rebuild of a stored textile's entries; empty / zero fields keep the registry's defaults.
+struct ResimulationRequest {
+  std::int64_t textile_id = 0;
+  std::string material_name;              ///< empty = keep the stored material
+  std::string material_yaml;
+  Real spacing = 0;                       ///< particle grid spacing d [m]; 0 = default
+  std::string model;                      ///< cloth model; empty = default
+};
+
+struct RegistryOptions {
+  /// Template of every build: simulation settings, views, workers, default spacing and lattice.
+  db::DrapeBuildConfig build;
+  /// Directory of material YAML files (NAME.yaml); "cotton" is also built in.
+  std::string material_dir;
+  /// Upper bound on the hold points of one build (a guard against absurd lattice spacings).
+  int max_hold_points = 2000;
+  /// Models a request may name.
+  std::vector<std::string> models = {"particle_kes"};
+};
+
+struct BuildProgressEvent {
+  std::int64_t textile_id = 0;
+  std::string textile_name;
+  std::string state;        ///< queued | running | done | failed
+  int done = 0, total = 0, failed = 0;
+  double elapsed_s = 0, eta_s = 0;
+  int jobs_queued = 0;      ///< jobs waiting behind this one
+  std::string message;
+};
+
+struct TextileSummary {
+  db::TextileRecord record;
+  db::DatabaseCounts counts;
+};
+
+/// A stored rest shape with the triangles of its particle grid (for markers and exports).
+struct StoredRestShape {
+  std::int64_t simulation_id = 0;
+  Vec2 hold = Vec2::Zero();              ///< stored hold point, textile frame [m]
+  VecX positions;                        ///< final positions, sim world [m]
+  Index held_particle = -1;
+  std::vector<std::array<Index, 3>> triangles;
+};
+
+/// What a request queued.
+struct QueuedBuild {
+  std::int64_t textile_id = 0;
+  int hold_points = 0;      ///< hold points planned (mirror-derived ones included)
+};
+
+class TextileRegistry {
+ public:
+  using ProgressCallback = std::function<void(const BuildProgressEvent&)>;
+  using ChangedCallback = std::function<void(std::int64_t textile_id)>;
+
+  /// Opens (creates) the database at `database_path` and starts the worker. Throws
+  /// db::DrapeDatabaseError if the file cannot be opened, std::invalid_argument for bad options.
+  TextileRegistry(std::string database_path, RegistryOptions options, ProgressCallback on_progress = {},
+                  ChangedCallback on_changed = {});
+  /// Stops the worker: the build in progress stops after its running simulations (resumable).
+  ~TextileRegistry();
+  TextileRegistry(const TextileRegistry&) = delete;
+  TextileRegistry& operator=(const TextileRegistry&) = delete;
+
+  /// Validates and stores a textile, queues its build and returns at once. Throws
+  /// db::InvalidInputError (nothing stored) with a message naming the offending field.
+  QueuedBuild registerTextile(const TextileRegistration& request);
+  /// Queues a rebuild of a stored textile (its old entries are replaced when the job starts).
+  /// Throws db::NotFoundError for an unknown id, db::InvalidInputError for bad fields.
+  QueuedBuild resimulate(const ResimulationRequest& request);
+  /// Queues the build of a stored textile with the current defaults (resumes an interrupted build;
+  /// nothing to do if complete).
+  QueuedBuild ensureBuilt(std::int64_t textile_id);
+  std::vector<TextileSummary> list() const;
+  /// Stores a preset textile (presetTextile(name)) with the default material unless one of that name
+  /// exists; returns its id. Throws db::InvalidInputError for an unknown preset.
+  std::int64_t ensurePreset(const std::string& name);
+  /// The done simulation of a textile whose hold point is nearest to `hold`. Throws db::NotFoundError
+  /// (unknown textile, nothing simulated yet).
+  StoredRestShape restShape(std::int64_t textile_id, const Vec2& hold) const;
+  /// Material of registrations that name none (and of presets).
+  void setDefaultMaterial(const Material& m);
+
+  /// Resolves a material by name (material_dir/NAME.yaml or built-in cotton) or from YAML text.
+  Material resolveMaterial(const std::string& name, const std::string& yaml) const;
+
+  /// Jobs waiting or running.
+  int pendingJobs() const;
+  /// Blocks until no job is waiting or running, or `timeout_s` passed; returns true when idle.
+  bool waitIdle(double timeout_s) const;
+  const std::string& databasePath() const { return path_; }
+
+ private:
+  struct Job {
+    std::int64_t textile_id = 0;
+    std::string textile_name;
+    db::DrapeBuildConfig config;
+    bool replace = false;           ///< delete the textile's old simulations (and set the material) first
+  };
+
+  QueuedBuild enqueue(Job job);
+  int planHoldPoints(const db::DrapeBuildConfig& config);
+  void workerLoop();
+  void runJob(Job& job, int queued_behind);
+  void emit(const BuildProgressEvent& e) const;
+
+  std::string path_;
+  RegistryOptions options_;
+  ProgressCallback on_progress_;
+  ChangedCallback on_changed_;
+  mutable std::mutex db_mutex_;             // guards db_ (the service threads' connection)
+  std::unique_ptr<db::HangingDrapeDatabase> db_;
+  mutable std::mutex queue_mutex_;
+  mutable std::condition_variable queue_cv_;
+  std::deque<Job> jobs_;
+  bool running_job_ = false;
+  bool stop_ = false;
+  std::atomic<bool> stop_requested_{false};
+  std::thread worker_;
+};
+
+}  // namespace registry
+}  // namespace textile_handling

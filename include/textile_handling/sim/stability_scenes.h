@@ -1,0 +1,133 @@
+// Compression scenes for the stability benchmark of the cloth models (issue 7, docs/choi_ko.md,
+// "Stability under compression"). ROS-free; runs on DrapeSimulation with a fixed step, so a step the
+// integrator cannot take, or one that blows up, ends the run as a divergence.
+//
+//  (a) pushed_edges: a flat square cloth whose two opposite edges are pushed together (one edge held,
+//      the other moved towards it by a prescribed pin trajectory), then held;
+//  (b) lowered_onto_table: a cloth hanging from its top edge is lowered onto a table (a plane
+//      obstacle, ObstaclePass), so it must fold or crumple, then held.
+//
+// DrapeSimulation moves all pinned nodes along one common offset trajectory, so scene (a) holds the
+// static edge with stiff zero-length anchor springs (AnchoredClothModel, integrated implicitly like
+// every other force) and moves the other edge with the pins.
+#pragma once
+
+#include <iosfwd>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "textile_handling/sim/choi_ko_model.h"
+#include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/particle_cloth_model.h"
+
+namespace textile_handling {
+
+/// Wraps a cloth model and ties some nodes to fixed points with zero-length springs
+/// f = -k (x - anchor), df/dx = -k I (on the diagonal blocks, which every pattern has). Everything
+/// else (masses, pattern, name, internal state, acceptStep) is the wrapped model's.
+class AnchoredClothModel : public ClothModel {
+ public:
+  AnchoredClothModel(ClothModel& inner, std::vector<Index> nodes, std::vector<Vec3> anchors, Real stiffness);
+
+  std::string name() const override { return inner_.name(); }
+  Index numNodes() const override { return inner_.numNodes(); }
+  int dofsPerNode() const override { return inner_.dofsPerNode(); }
+  const VecX& massPerDof() const override { return inner_.massPerDof(); }
+  const BlockPattern& jacobianPattern() const override { return inner_.jacobianPattern(); }
+  ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
+  Real potentialEnergy(const VecX& x) const override;
+  Vec3 nodePosition(const VecX& x, Index node) const override { return inner_.nodePosition(x, node); }
+  Real maxEdgeStretch(const VecX& x) const override { return inner_.maxEdgeStretch(x); }
+  void acceptStep(const VecX& x, const VecX& v) override { inner_.acceptStep(x, v); }
+  std::vector<Real> internalState() const override { return inner_.internalState(); }
+  bool setInternalState(const std::vector<Real>& s) override { return inner_.setInternalState(s); }
+
+ private:
+  ClothModel& inner_;
+  std::vector<Index> nodes_;
+  std::vector<Vec3> anchors_;
+  Real k_;
+};
+
+enum class CompressionScene { kPushedEdges, kLoweredOntoTable };
+std::string toString(CompressionScene s);
+/// Parses "pushed_edges", "lowered_onto_table"; throws std::invalid_argument otherwise.
+CompressionScene compressionSceneFromString(const std::string& s);
+
+struct CompressionSceneSpec {
+  CompressionScene scene = CompressionScene::kPushedEdges;
+  Real side = 0.3;        ///< side of the square cloth [m]
+  Real spacing = 0.02;    ///< grid spacing d [m]
+  Real hold_time = 1.0;   ///< simulated time after the motion [s]
+  /// Out-of-plane perturbation of the flat start, in units of d: amplitude of a smooth first mode
+  /// (a half sine across the sheet) ...
+  Real perturbation = 0.05;
+  /// ... plus a fixed pseudo-random part of this amplitude (breaks the symmetry; kept small, since
+  /// node-to-node roughness pre-stretches the tension springs).
+  Real noise = 0.001;
+  // (a) pushed edges.
+  Real push_fraction = 0.4;     ///< travel of the moving edge / side
+  Real push_time = 1.0;         ///< [s]
+  bool push_gravity = false;    ///< gravity in scene (a) (off: pure in-plane compression)
+  Real anchor_stiffness = 1e4;  ///< [N/m] per anchored node of the held edge
+  // (b) lowered onto a table.
+  Real table_gap = 0.02;        ///< initial height of the bottom edge above the table [m]
+  Real lower_fraction = 0.6;    ///< travel of the holder below first contact / side
+  Real lower_time = 1.5;        ///< [s]
+  Real table_friction = 0.5;    ///< ObstacleOptions::friction
+};
+
+struct StabilityRunSpec {
+  std::string model = "choi_ko";  ///< "choi_ko" or "particle_kes"
+  Real dt = 0.01;                 ///< fixed step [s]
+  bool damping = false;           ///< add settle (mass-proportional) damping
+  Real damping_per_s = 5.0;       ///< zeta [1/s] used when `damping` is on
+  Material material = Material::cotton();
+  ParticleModelOptions particle_options;  ///< its settle_damping is replaced by the above
+  ChoiKoOptions choi_ko_options;          ///< its settle_damping is replaced by the above
+  IntegratorType integrator = IntegratorType::kSemiImplicitEuler;
+  SolverSettings solver;
+  /// Divergence bounds handed to DrapeSimulation (RMS speed, edge stretch).
+  Real max_rms_speed = 5.0;       ///< [m/s]
+  Real max_edge_stretch = 2.0;
+};
+
+struct StabilityResult {
+  bool stable = false;           ///< ran to the end without divergence
+  std::string reason;            ///< why not (DrapeSimulation's divergence reason)
+  Real end_time = 0;             ///< scheduled end of the scene [s]
+  Real sim_time = 0;             ///< reached [s]
+  long steps = 0;
+  long solver_iterations = 0;
+  Real wall_time = 0;            ///< [s]
+  Real peak_rms_speed = 0;       ///< sampled every max(dt, 10 ms) [m/s]
+  Real final_rms_speed = 0;      ///< [m/s]
+  Real peak_edge_stretch = 0;    ///< sampled
+  Real final_min_z = 0;          ///< lowest node at the end [m] (scene b: the table is at z = 0)
+  long obstacle_events = 0;
+  Index nodes = 0;
+};
+
+/// Runs one scene with one model, step and damping setting. Throws std::invalid_argument on bad specs.
+StabilityResult runCompressionScene(const CompressionSceneSpec& scene, const StabilityRunSpec& run);
+
+/// One row of a stability table (the columns of DIR/stability.csv).
+struct StabilityRow {
+  std::string model;      ///< "choi_ko", "particle_kes" (a variant may append e.g. "/definite_fix")
+  std::string scene;      ///< toString(CompressionScene)
+  Real dt = 0;
+  bool damping = false;
+  StabilityResult result;
+};
+
+/// Runs `dts` (any order) for one model/scene/damping setting and returns one row per step.
+std::vector<StabilityRow> scanStability(const CompressionSceneSpec& scene, const StabilityRunSpec& run,
+                                        const std::vector<Real>& dts, const std::string& label = "");
+/// Largest dt whose row is stable (0 if none).
+Real largestStableDt(const std::vector<StabilityRow>& rows);
+/// Writes the rows as CSV with a header row: model,scene,dt_s,damping,stable,reason,sim_time_s,
+/// steps,peak_rms_speed_m_s,peak_edge_stretch,wall_s (damping and stable as 0/1).
+void writeStabilityCsv(std::ostream& os, const std::vector<StabilityRow>& rows);
+
+}  // namespace textile_handling

@@ -1,0 +1,307 @@
+#include "textile_recognizer_node.h"
+
+#include <cv_bridge/cv_bridge.h>
+#include <geometry_msgs/PoseArray.h>
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <stdexcept>
+
+#include "textile_handling/RecognitionResult.h"
+
+namespace textile_handling {
+
+namespace {
+
+std::string expandHome(const std::string& path) {
+  if (path.rfind("~/", 0) != 0) return path;
+  const char* home = std::getenv("HOME");
+  return std::string(home ? home : ".") + path.substr(1);
+}
+
+double finiteParam(ros::NodeHandle& nh, const std::string& name, double fallback, double lo) {
+  double v = fallback;
+  nh.param(name, v, fallback);
+  if (!std::isfinite(v) || v < lo)
+    throw std::runtime_error("parameter ~" + name + " must be a finite number >= " + std::to_string(lo));
+  return v;
+}
+
+recognition::BackgroundModel backgroundFromString(const std::string& s) {
+  if (s == "uniform_colour") return recognition::BackgroundModel::kUniformColour;
+  if (s == "border_median") return recognition::BackgroundModel::kBorderMedian;
+  throw std::runtime_error("parameter ~segmentation/background must be uniform_colour or border_median");
+}
+
+recognition::ColourSpace colourSpaceFromString(const std::string& s) {
+  if (s == "bgr") return recognition::ColourSpace::kBgr;
+  if (s == "lab") return recognition::ColourSpace::kLab;
+  if (s == "ab") return recognition::ColourSpace::kAb;
+  throw std::runtime_error("parameter ~segmentation/colour_space must be bgr, lab or ab");
+}
+
+recognition::DepthMode depthModeFromString(const std::string& s) {
+  if (s == "colour_only") return recognition::DepthMode::kColourOnly;
+  if (s == "gate") return recognition::DepthMode::kGate;
+  if (s == "intersect") return recognition::DepthMode::kIntersect;
+  if (s == "depth_only") return recognition::DepthMode::kDepthOnly;
+  throw std::runtime_error("parameter ~segmentation/depth_mode must be colour_only, gate, intersect or depth_only");
+}
+
+}  // namespace
+
+TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh)
+    : nh_(nh), pnh_(pnh), it_(nh), tf_listener_(tf_buffer_) {
+  std::string db_path = "~/.ros/textile_handling/drapes.sqlite";
+  pnh.param<std::string>("database_path", db_path, db_path);
+  db_path = expandHome(db_path);
+  pnh.param<std::string>("gripper_frame", gripper_frame_, gripper_frame_);
+  pnh.param<std::string>("up_frame", up_frame_, up_frame_);
+  pnh.param<std::string>("grasp_frame_prefix", grasp_frame_prefix_, grasp_frame_prefix_);
+  if (db_path.empty() || gripper_frame_.empty() || up_frame_.empty())
+    throw std::runtime_error("parameters ~database_path, ~gripper_frame and ~up_frame must not be empty");
+  tf_timeout_s_ = finiteParam(pnh, "tf_timeout_s", tf_timeout_s_, 0.0);
+  pnh.param("use_depth", use_depth_, use_depth_);
+  depth_max_age_s_ = finiteParam(pnh, "depth_max_age_s", depth_max_age_s_, 0.0);
+
+  recognition::RecognizerOptions o;
+  int top_k = 5;
+  pnh.param("top_k", top_k, top_k);
+  if (top_k < 1) throw std::runtime_error("parameter ~top_k must be >= 1");
+  o.match.top_k = top_k;
+  pnh.param<std::string>("textile", o.textile_name, o.textile_name);
+  std::string bg = "uniform_colour", cs = "bgr", dm = use_depth_ ? "gate" : "colour_only";
+  pnh.param<std::string>("segmentation/background", bg, bg);
+  pnh.param<std::string>("segmentation/colour_space", cs, cs);
+  pnh.param<std::string>("segmentation/depth_mode", dm, dm);
+  o.segmentation.background = backgroundFromString(bg);
+  o.segmentation.colour_space = colourSpaceFromString(cs);
+  o.segmentation.depth_mode = depthModeFromString(dm);
+  std::vector<int> bgr;
+  if (pnh.getParam("segmentation/background_bgr", bgr)) {
+    if (bgr.size() != 3) throw std::runtime_error("parameter ~segmentation/background_bgr must have 3 entries");
+    for (int k = 0; k < 3; ++k) {
+      if (bgr[k] < 0 || bgr[k] > 255) throw std::runtime_error("parameter ~segmentation/background_bgr: 0..255");
+      o.segmentation.background_bgr[k] = static_cast<std::uint8_t>(bgr[k]);
+    }
+  }
+  o.segmentation.threshold = finiteParam(pnh, "segmentation/threshold", o.segmentation.threshold, 0.0);
+  o.segmentation.min_area_px =
+      static_cast<int>(finiteParam(pnh, "segmentation/min_area_px", o.segmentation.min_area_px, 1.0));
+  o.geometry.max_elevation_deg = finiteParam(pnh, "max_elevation_deg", o.geometry.max_elevation_deg, 0.0);
+  pnh.param("refine", o.refinement.enabled, o.refinement.enabled);
+  try {
+    o.validate();
+    recognizer_ = std::make_unique<recognition::TextileRecognizer>(db_path, o);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("recognizer (database '" + db_path + "'): " + e.what());
+  }
+  if (!recognizer_->ready())
+    ROS_WARN_NAMED("textile_recognizer", "database %s has no finished simulations yet; waiting for database_changed",
+                   db_path.c_str());
+
+  result_pub_ = pnh.advertise<RecognitionResult>("result", 10);
+  poses_pub_ = pnh.advertise<geometry_msgs::PoseArray>("grasp_poses", 10);
+  image_transport::ImageTransport pit(pnh);
+  debug_pub_ = pit.advertise("debug_image", 1);
+  std::string changed_topic = "drape_simulator/database_changed";
+  pnh.param<std::string>("database_changed_topic", changed_topic, changed_topic);
+  changed_sub_ = nh.subscribe(changed_topic, 1, &TextileRecognizerNode::databaseChanged, this);
+  camera_sub_ = it_.subscribeCamera("image", 2, &TextileRecognizerNode::imageCallback, this);
+  if (use_depth_) depth_sub_ = nh.subscribe("depth", 2, &TextileRecognizerNode::depthCallback, this);
+  worker_ = std::thread([this] { workerLoop(); });
+  ROS_INFO_NAMED("textile_recognizer", "ready: %zu silhouettes of %zu hold points, image topic %s%s",
+                 recognizer_->silhouetteCount(), recognizer_->holdPointCount(), camera_sub_.getTopic().c_str(),
+                 use_depth_ ? ", with depth" : "");
+}
+
+TextileRecognizerNode::~TextileRecognizerNode() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+void TextileRecognizerNode::depthCallback(const sensor_msgs::ImageConstPtr& depth) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_depth_ = depth;
+}
+
+void TextileRecognizerNode::databaseChanged(const DatabaseChanged::ConstPtr&) { reload_requested_ = true; }
+
+void TextileRecognizerNode::imageCallback(const sensor_msgs::ImageConstPtr& image,
+                                          const sensor_msgs::CameraInfoConstPtr& info) {
+  // Never block: hand the frame to the worker, or drop it if the worker is busy.
+  if (busy_) {
+    ++dropped_;
+    ROS_DEBUG_THROTTLE_NAMED(5.0, "textile_recognizer", "busy: dropped %ld frames so far", dropped_.load());
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  pending_.image = image;
+  pending_.info = info;
+  pending_.depth.reset();
+  if (use_depth_ && last_depth_ &&
+      std::fabs((last_depth_->header.stamp - image->header.stamp).toSec()) <= depth_max_age_s_)
+    pending_.depth = last_depth_;
+  has_frame_ = true;
+  busy_ = true;
+  cv_.notify_one();
+}
+
+void TextileRecognizerNode::workerLoop() {
+  for (;;) {
+    Frame f;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [this] { return stop_ || has_frame_; });
+      if (stop_) return;
+      f = pending_;
+      has_frame_ = false;
+    }
+    if (reload_requested_.exchange(false)) {
+      try {
+        if (recognizer_->reloadIfChanged())
+          ROS_INFO_NAMED("textile_recognizer", "database reloaded: %zu silhouettes", recognizer_->silhouetteCount());
+      } catch (const std::exception& e) {
+        ROS_WARN_THROTTLE_NAMED(5.0, "textile_recognizer", "database reload failed (keeping the old index): %s",
+                                e.what());
+      }
+    }
+    try {
+      process(f);
+    } catch (const std::exception& e) {
+      // Defensive: process() reports its own errors; anything else must not kill the worker.
+      ROS_ERROR_THROTTLE_NAMED(1.0, "textile_recognizer", "unexpected error: %s", e.what());
+    }
+    busy_ = false;
+  }
+}
+
+void TextileRecognizerNode::publishFailure(const std_msgs::Header& header, const std::string& why) {
+  RecognitionResult r;
+  r.header.stamp = header.stamp;
+  r.header.frame_id = gripper_frame_;
+  r.success = false;
+  r.message = why;
+  result_pub_.publish(r);
+  ROS_WARN_THROTTLE_NAMED(2.0, "textile_recognizer", "%s", why.c_str());
+}
+
+void TextileRecognizerNode::process(const Frame& f) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std_msgs::Header& h = f.image->header;
+  if (h.frame_id.empty()) return publishFailure(h, "image has an empty frame_id");
+  recognition::CameraObservation obs;
+  // Intrinsics from camera_info (K row-major).
+  const auto& K = f.info->K;
+  obs.intrinsics.fx = K[0];
+  obs.intrinsics.fy = K[4];
+  obs.intrinsics.cx = K[2];
+  obs.intrinsics.cy = K[5];
+  obs.intrinsics.width = static_cast<int>(f.info->width);
+  obs.intrinsics.height = static_cast<int>(f.info->height);
+  if (!(K[0] > 0) || !(K[4] > 0) || !std::isfinite(K[2]) || !std::isfinite(K[5]))
+    return publishFailure(h, "camera_info has no valid intrinsics (K)");
+  if (f.info->width != f.image->width || f.info->height != f.image->height)
+    return publishFailure(h, "camera_info size differs from the image size");
+  try {
+    obs.image = cv_bridge::toCvShare(f.image)->image;
+    obs.encoding = f.image->encoding;
+    if (f.depth) {
+      obs.depth = cv_bridge::toCvShare(f.depth)->image;
+      if (f.depth->encoding != "32FC1" && f.depth->encoding != "16UC1")
+        return publishFailure(h, "depth encoding " + f.depth->encoding + " is not 32FC1 or 16UC1");
+    }
+  } catch (const cv_bridge::Exception& e) {
+    return publishFailure(h, std::string("image conversion: ") + e.what());
+  }
+  // Geometry from tf at the image's stamp: hold point (gripper origin), up and heading in the camera.
+  Eigen::Isometry3d camera_gripper, camera_up;
+  try {
+    camera_gripper = tf2::transformToEigen(
+        tf_buffer_.lookupTransform(h.frame_id, gripper_frame_, h.stamp, ros::Duration(tf_timeout_s_)));
+    camera_up = tf2::transformToEigen(
+        tf_buffer_.lookupTransform(h.frame_id, up_frame_, h.stamp, ros::Duration(tf_timeout_s_)));
+  } catch (const tf2::TransformException& e) {
+    return publishFailure(h, std::string("tf: ") + e.what());
+  }
+  obs.hold_camera = camera_gripper.translation();
+  obs.up_camera = camera_up.linear() * Vec3::UnitZ();
+  obs.heading_camera = Vec3(camera_gripper.linear() * Vec3::UnitX());
+  recognition::RecognitionResult res;
+  try {
+    res = recognizer_->recognize(obs);
+  } catch (const std::exception& e) {
+    return publishFailure(h, e.what());
+  }
+  // Poses: camera frame -> gripper frame.
+  const Eigen::Isometry3d gripper_camera = camera_gripper.inverse();
+  RecognitionResult out;
+  out.header.stamp = h.stamp;
+  out.header.frame_id = gripper_frame_;
+  out.success = true;
+  out.textile_id = res.textile_id;
+  out.textile_name = res.textile_name;
+  out.hold_x = res.hold_point.x();
+  out.hold_y = res.hold_point.y();
+  out.lattice_i = res.lattice_i;
+  out.lattice_j = res.lattice_j;
+  for (const Vec2& e : res.equivalent_hold_points) {
+    out.equivalent_hold_x.push_back(e.x());
+    out.equivalent_hold_y.push_back(e.y());
+  }
+  out.view_angle_deg = res.view_angle_deg;
+  out.score = res.score;
+  out.confidence = res.confidence;
+  out.front_back_ambiguous = res.front_back_ambiguous;
+  out.depth_used = res.depth_used;
+  for (const auto& c : res.top_k) {
+    RecognitionCandidate rc;
+    rc.textile_id = c.textile_id;
+    rc.textile_name = c.textile_name;
+    rc.hold_x = c.hold_point.x();
+    rc.hold_y = c.hold_point.y();
+    rc.lattice_i = c.lattice_i;
+    rc.lattice_j = c.lattice_j;
+    rc.view_angle_deg = c.view_angle_deg;
+    rc.score = c.score;
+    out.top_k.push_back(rc);
+  }
+  out.grasp_poses.header = out.header;
+  std::vector<geometry_msgs::TransformStamped> frames;
+  for (const auto& g : res.grasp_poses) {
+    Eigen::Isometry3d pose_camera = Eigen::Isometry3d::Identity();
+    pose_camera.linear() = g.rotation_camera;
+    pose_camera.translation() = g.position_camera;
+    const Eigen::Isometry3d pose_gripper = gripper_camera * pose_camera;
+    out.grasp_names.push_back(g.name);
+    out.grasp_kinds.push_back(g.kind);
+    out.grasp_poses.poses.push_back(tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix())));
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose_gripper);
+    t.header = out.header;
+    t.child_frame_id = grasp_frame_prefix_ + g.name;
+    frames.push_back(t);
+  }
+  out.processing_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  tf_broadcaster_.sendTransform(frames);
+  result_pub_.publish(out);
+  poses_pub_.publish(out.grasp_poses);
+  if (debug_pub_.getNumSubscribers() > 0) {  // lazy: the overlay costs a render
+    try {
+      const cv::Mat dbg = recognizer_->debugImage(obs, res);
+      debug_pub_.publish(cv_bridge::CvImage(h, "bgr8", dbg).toImageMsg());
+    } catch (const std::exception& e) {
+      ROS_WARN_THROTTLE_NAMED(5.0, "textile_recognizer", "debug image: %s", e.what());
+    }
+  }
+  ROS_INFO_THROTTLE_NAMED(1.0, "textile_recognizer", "%s held at (%.3f, %.3f) m, view %.0f deg, score %.2f (+%.2f), %.0f ms",
+                          out.textile_name.c_str(), out.hold_x, out.hold_y, out.view_angle_deg, out.score,
+                          out.confidence, out.processing_ms);
+}
+
+}  // namespace textile_handling

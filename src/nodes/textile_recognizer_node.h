@@ -1,0 +1,75 @@
+// ROS node class of the textile recognizer. Thin: reads its parameters once (private namespace,
+// config/textile_recognizer.yaml), converts images, camera_info, depth and tf at the edge, and calls
+// the ROS-free recognition core (recognition::TextileRecognizer) on a worker thread. Frames that
+// arrive while the worker is busy are dropped; callbacks never wait for recognition. docs/ros.md.
+#pragma once
+
+#include <image_transport/image_transport.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "textile_handling/DatabaseChanged.h"
+#include "textile_handling/recognition/textile_recognizer.h"
+
+namespace textile_handling {
+
+class TextileRecognizerNode {
+ public:
+  /// Reads all parameters and opens the database; throws std::runtime_error naming the bad parameter.
+  TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandle& private_nh);
+  ~TextileRecognizerNode();
+
+ private:
+  struct Frame {
+    sensor_msgs::ImageConstPtr image;
+    sensor_msgs::CameraInfoConstPtr info;
+    sensor_msgs::ImageConstPtr depth;
+  };
+
+  void imageCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  void depthCallback(const sensor_msgs::ImageConstPtr& depth);
+  void databaseChanged(const DatabaseChanged::ConstPtr& msg);
+  void workerLoop();
+  void process(const Frame& frame);
+  void publishFailure(const std_msgs::Header& header, const std::string& why);
+
+  ros::NodeHandle nh_, pnh_;
+  image_transport::ImageTransport it_;
+  image_transport::CameraSubscriber camera_sub_;
+  ros::Subscriber depth_sub_, changed_sub_;
+  ros::Publisher result_pub_, poses_pub_;
+  image_transport::Publisher debug_pub_;
+  tf2_ros::Buffer tf_buffer_;
+  tf2_ros::TransformListener tf_listener_;
+  tf2_ros::TransformBroadcaster tf_broadcaster_;
+
+  std::string gripper_frame_ = "gripper";
+  std::string up_frame_ = "world";
+  std::string grasp_frame_prefix_ = "grasp/";
+  double tf_timeout_s_ = 0.2;
+  double depth_max_age_s_ = 0.05;
+  bool use_depth_ = false;
+  std::unique_ptr<recognition::TextileRecognizer> recognizer_;
+
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool has_frame_ = false, stop_ = false;
+  Frame pending_;
+  sensor_msgs::ImageConstPtr last_depth_;
+  std::atomic<bool> busy_{false}, reload_requested_{false};
+  std::atomic<long> dropped_{0};
+  std::thread worker_;
+};
+
+}  // namespace textile_handling

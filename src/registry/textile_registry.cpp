@@ -1,0 +1,330 @@
+#include "textile_handling/registry/textile_registry.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+
+#include "textile_handling/db/database_errors.h"
+#include "textile_handling/vision/silhouette_renderer.h"
+
+namespace textile_handling {
+namespace registry {
+
+namespace {
+
+using db::InvalidInputError;
+
+void checkName(const std::string& name, const char* what) {
+  if (name.empty()) throw InvalidInputError(std::string(what) + " is empty");
+  if (name.size() > 64) throw InvalidInputError(std::string(what) + " is longer than 64 characters");
+  for (char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                    c == '-' || c == '.';
+    if (!ok) throw InvalidInputError(std::string(what) + " '" + name + "' may only contain letters, digits, _ - .");
+  }
+}
+
+void checkSpacing(Real v, const char* what) {
+  if (!std::isfinite(v) || v < 0) throw InvalidInputError(std::string(what) + " must be finite and >= 0 (0 = default)");
+}
+
+}  // namespace
+
+TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions options, ProgressCallback on_progress,
+                                 ChangedCallback on_changed)
+    : path_(std::move(database_path)),
+      options_(std::move(options)),
+      on_progress_(std::move(on_progress)),
+      on_changed_(std::move(on_changed)) {
+  if (path_.empty()) throw std::invalid_argument("TextileRegistry: empty database path");
+  if (!(options_.build.lattice_spacing > 0) || !(options_.build.spacing > 0) || options_.max_hold_points < 1)
+    throw std::invalid_argument("TextileRegistry: lattice spacing, particle spacing and max_hold_points must be positive");
+  const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
+  if (!parent.empty()) std::filesystem::create_directories(parent);
+  db_ = std::make_unique<db::HangingDrapeDatabase>(path_);
+  options_.build.progress = false;  // progress goes to the callback, not to a terminal
+  worker_ = std::thread([this] { workerLoop(); });
+}
+
+TextileRegistry::~TextileRegistry() {
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stop_ = true;
+  }
+  stop_requested_ = true;
+  queue_cv_.notify_all();
+  if (worker_.joinable()) worker_.join();
+}
+
+Material TextileRegistry::resolveMaterial(const std::string& name, const std::string& yaml) const {
+  if (!yaml.empty()) {
+    try {
+      return parseMaterialYaml(yaml);
+    } catch (const std::exception& e) {
+      throw InvalidInputError(std::string("material_yaml: ") + e.what());
+    }
+  }
+  if (name.empty()) return options_.build.material;
+  checkName(name, "material");
+  if (!options_.material_dir.empty()) {
+    const std::string file = options_.material_dir + "/" + name + ".yaml";
+    if (std::filesystem::exists(file)) {
+      try {
+        return loadMaterialYaml(file);
+      } catch (const std::exception& e) {
+        throw InvalidInputError(std::string("material '") + name + "': " + e.what());
+      }
+    }
+  }
+  if (name == "cotton") return Material::cotton();
+  throw InvalidInputError("unknown material '" + name + "' (no " +
+                          (options_.material_dir.empty() ? std::string("material directory")
+                                                         : options_.material_dir + "/" + name + ".yaml") +
+                          ", and not the built-in cotton)");
+}
+
+int TextileRegistry::planHoldPoints(const db::DrapeBuildConfig& config) {
+  // The builder validates the configuration (scene of the first hold point) and plans the rows; it
+  // writes nothing until build().
+  std::lock_guard<std::mutex> lock(db_mutex_);
+  db::DrapeDatabaseBuilder planner(*db_, config);
+  const int n = static_cast<int>(planner.plan().size());
+  if (n > options_.max_hold_points)
+    throw InvalidInputError("the hold-point lattice has " + std::to_string(n) + " points (limit " +
+                            std::to_string(options_.max_hold_points) + "): choose a larger hold_point_spacing");
+  return n;
+}
+
+QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
+  checkName(r.name, "name");
+  checkSpacing(r.hold_point_spacing, "hold_point_spacing_m");
+  TextileOutline outline;
+  outline.name = r.name;
+  outline.outline = r.outline;
+  outline.named_points = r.named_points;
+  std::string error;
+  if (!validateTextileOutline(outline, &error)) throw InvalidInputError("outline: " + error);
+  const Material material = resolveMaterial(r.material_name, r.material_yaml);
+  if (!material.validate(&error)) throw InvalidInputError("material: " + error);
+  {
+    std::lock_guard<std::mutex> lock(db_mutex_);
+    if (db_->findTextile(r.name)) throw InvalidInputError("a textile named '" + r.name + "' already exists");
+  }
+  Job job;
+  job.textile_name = r.name;
+  job.config = options_.build;
+  job.config.textile = outline;
+  job.config.material = material;
+  if (r.hold_point_spacing > 0) job.config.lattice_spacing = r.hold_point_spacing;
+  const int planned = planHoldPoints(job.config);  // throws before anything is stored
+  {
+    std::lock_guard<std::mutex> lock(db_mutex_);
+    job.textile_id = db_->addTextile(outline, material);
+  }
+  if (on_changed_) on_changed_(job.textile_id);
+  QueuedBuild q = enqueue(std::move(job));
+  q.hold_points = planned;
+  return q;
+}
+
+QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
+  checkSpacing(r.spacing, "spacing_m");
+  db::TextileRecord rec;
+  {
+    std::lock_guard<std::mutex> lock(db_mutex_);
+    rec = db_->textile(r.textile_id);  // NotFoundError for an unknown id
+  }
+  Job job;
+  job.textile_id = rec.id;
+  job.textile_name = rec.outline.name;
+  job.config = options_.build;
+  job.config.textile = rec.outline;
+  job.config.material =
+      r.material_name.empty() && r.material_yaml.empty() ? rec.material : resolveMaterial(r.material_name, r.material_yaml);
+  std::string error;
+  if (!job.config.material.validate(&error)) throw InvalidInputError("material: " + error);
+  if (r.spacing > 0) job.config.spacing = r.spacing;
+  if (!r.model.empty()) {
+    bool known = false;
+    for (const auto& m : options_.models) known = known || m == r.model;
+    if (!known) throw InvalidInputError("unknown model '" + r.model + "'");
+    job.config.model = r.model;
+  }
+  job.replace = true;
+  const int planned = planHoldPoints(job.config);
+  QueuedBuild q = enqueue(std::move(job));
+  q.hold_points = planned;
+  return q;
+}
+
+QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
+  db::TextileRecord rec;
+  {
+    std::lock_guard<std::mutex> lock(db_mutex_);
+    rec = db_->textile(textile_id);
+  }
+  Job job;
+  job.textile_id = rec.id;
+  job.textile_name = rec.outline.name;
+  job.config = options_.build;
+  job.config.textile = rec.outline;
+  job.config.material = rec.material;
+  const int planned = planHoldPoints(job.config);
+  QueuedBuild q = enqueue(std::move(job));
+  q.hold_points = planned;
+  return q;
+}
+
+std::vector<TextileSummary> TextileRegistry::list() const {
+  std::lock_guard<std::mutex> lock(db_mutex_);
+  std::vector<TextileSummary> out;
+  for (auto& rec : db_->textiles()) {
+    TextileSummary s;
+    s.counts = db_->counts(rec.id);
+    s.record = std::move(rec);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+std::int64_t TextileRegistry::ensurePreset(const std::string& name) {
+  TextileOutline outline;
+  try {
+    outline = presetTextile(name);
+  } catch (const std::exception& e) {
+    throw InvalidInputError(e.what());
+  }
+  std::lock_guard<std::mutex> lock(db_mutex_);
+  if (const auto rec = db_->findTextile(name)) return rec->id;
+  return db_->addTextile(outline, options_.build.material);
+}
+
+void TextileRegistry::setDefaultMaterial(const Material& m) {
+  std::string error;
+  if (!m.validate(&error)) throw InvalidInputError("default material: " + error);
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  options_.build.material = m;
+}
+
+StoredRestShape TextileRegistry::restShape(std::int64_t textile_id, const Vec2& hold) const {
+  std::lock_guard<std::mutex> lock(db_mutex_);
+  const db::TextileRecord rec = db_->textile(textile_id);
+  const auto done = db_->simulations(textile_id, db::SimulationStatus::kDone);
+  if (done.empty()) throw db::NotFoundError("textile " + std::to_string(textile_id) + " has no finished simulation yet");
+  const db::SimulationRecord* best = &done.front();
+  for (const auto& s : done)
+    if ((s.hold - hold).squaredNorm() < (best->hold - hold).squaredNorm()) best = &s;
+  StoredRestShape out;
+  out.simulation_id = best->id;
+  out.hold = best->hold;
+  out.positions = db_->positions(best->id);
+  out.held_particle = best->held_particle;
+  std::string error;
+  const ParticleGrid grid = ParticleGrid::rasterize(rec.outline, best->spacing, &error);
+  if (grid.empty()) throw db::InvalidInputError("stored textile no longer rasterises: " + error);
+  if (3 * grid.numActive() != out.positions.size() || out.held_particle < 0 || out.held_particle >= grid.numActive())
+    throw db::BlobFormatError("simulation " + std::to_string(best->id) + ": positions do not match its particle grid");
+  for (const auto& t : vision::trianglesFromTopology(ParticleTopology::fromGrid(grid))) out.triangles.push_back(t);
+  return out;
+}
+
+int TextileRegistry::pendingJobs() const {
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  return static_cast<int>(jobs_.size()) + (running_job_ ? 1 : 0);
+}
+
+bool TextileRegistry::waitIdle(double timeout_s) const {
+  std::unique_lock<std::mutex> lock(queue_mutex_);
+  return queue_cv_.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                            [this] { return jobs_.empty() && !running_job_; });
+}
+
+QueuedBuild TextileRegistry::enqueue(Job job) {
+  QueuedBuild q;
+  q.textile_id = job.textile_id;
+  BuildProgressEvent e;
+  e.textile_id = job.textile_id;
+  e.textile_name = job.textile_name;
+  e.state = "queued";
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    jobs_.push_back(std::move(job));
+    e.jobs_queued = static_cast<int>(jobs_.size()) - 1 + (running_job_ ? 1 : 0);
+  }
+  queue_cv_.notify_all();
+  emit(e);
+  return q;
+}
+
+void TextileRegistry::emit(const BuildProgressEvent& e) const {
+  if (on_progress_) on_progress_(e);
+}
+
+void TextileRegistry::workerLoop() {
+  for (;;) {
+    Job job;
+    int behind = 0;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_cv_.wait(lock, [this] { return stop_ || !jobs_.empty(); });
+      if (stop_) return;
+      job = std::move(jobs_.front());
+      jobs_.pop_front();
+      behind = static_cast<int>(jobs_.size());
+      running_job_ = true;
+    }
+    runJob(job, behind);
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      running_job_ = false;
+    }
+    queue_cv_.notify_all();
+  }
+}
+
+void TextileRegistry::runJob(Job& job, int queued_behind) {
+  using Clock = std::chrono::steady_clock;
+  const auto start = Clock::now();
+  BuildProgressEvent e;
+  e.textile_id = job.textile_id;
+  e.textile_name = job.textile_name;
+  e.jobs_queued = queued_behind;
+  e.state = "running";
+  emit(e);
+  try {
+    // The worker's own connection: SQLite connections are not shared between threads here.
+    db::HangingDrapeDatabase wdb(path_);
+    if (job.replace) {
+      wdb.replaceTextileEntries(job.textile_id, job.config.material);
+      if (on_changed_) on_changed_(job.textile_id);
+    }
+    job.config.should_stop = [this] { return stop_requested_.load(); };
+    job.config.on_progress = [&](int done, int total) {
+      BuildProgressEvent p = e;
+      p.done = done;
+      p.total = total;
+      p.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+      p.eta_s = done > 0 && total > done ? p.elapsed_s / done * (total - done) : 0;
+      emit(p);
+    };
+    db::DrapeDatabaseBuilder builder(wdb, job.config);
+    const db::DrapeBuildReport rep = builder.build();
+    e.done = rep.already_done + rep.simulated_now;
+    e.total = rep.to_simulate;
+    e.failed = rep.failed_now;
+    e.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+    e.state = stop_requested_ ? "stopped" : (rep.failed_now > 0 ? "failed" : "done");
+    e.message = std::to_string(rep.simulated_now) + " simulated, " + std::to_string(rep.derived_now) +
+                " mirrored, " + std::to_string(rep.failed_now) + " failed";
+    if (!rep.failures.empty()) e.message += "; first failure: " + rep.failures.front();
+  } catch (const std::exception& ex) {
+    e.state = "failed";
+    e.message = ex.what();
+    e.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
+  }
+  emit(e);
+  if (on_changed_) on_changed_(job.textile_id);
+}
+
+}  // namespace registry
+}  // namespace textile_handling

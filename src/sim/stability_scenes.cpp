@@ -1,0 +1,244 @@
+#include "textile_handling/sim/stability_scenes.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <ostream>
+#include <stdexcept>
+
+#include "textile_handling/sim/collision.h"
+#include "textile_handling/sim/textile_geometry.h"
+
+namespace textile_handling {
+
+AnchoredClothModel::AnchoredClothModel(ClothModel& inner, std::vector<Index> nodes, std::vector<Vec3> anchors,
+                                       Real stiffness)
+    : inner_(inner), nodes_(std::move(nodes)), anchors_(std::move(anchors)), k_(stiffness) {
+  if (nodes_.size() != anchors_.size()) throw std::invalid_argument("AnchoredClothModel: nodes and anchors differ in length");
+  if (!(k_ >= 0) || !std::isfinite(k_)) throw std::invalid_argument("AnchoredClothModel: stiffness must be finite and >= 0");
+  if (inner_.dofsPerNode() != 3) throw std::invalid_argument("AnchoredClothModel: needs 3 DOFs per node");
+  for (Index p : nodes_)
+    if (p < 0 || p >= inner_.numNodes()) throw std::invalid_argument("AnchoredClothModel: node out of range");
+}
+
+ForceReport AnchoredClothModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
+  const ForceReport rep = inner_.computeForces(x, v, f, jac);
+  const BlockPattern& p = inner_.jacobianPattern();
+  for (size_t k = 0; k < nodes_.size(); ++k) {
+    node3(f, nodes_[k]) -= k_ * (node3(x, nodes_[k]) - anchors_[k]);
+    if (jac) jac->dfdx.add3(p.diagonal(nodes_[k]), -k_ * Mat3::Identity());
+  }
+  return rep;
+}
+
+Real AnchoredClothModel::potentialEnergy(const VecX& x) const {
+  Real e = inner_.potentialEnergy(x);
+  for (size_t k = 0; k < nodes_.size(); ++k) e += 0.5 * k_ * (node3(x, nodes_[k]) - anchors_[k]).squaredNorm();
+  return e;
+}
+
+std::string toString(CompressionScene s) {
+  return s == CompressionScene::kPushedEdges ? "pushed_edges" : "lowered_onto_table";
+}
+
+CompressionScene compressionSceneFromString(const std::string& s) {
+  if (s == "pushed_edges") return CompressionScene::kPushedEdges;
+  if (s == "lowered_onto_table") return CompressionScene::kLoweredOntoTable;
+  throw std::invalid_argument("unknown compression scene '" + s + "' (expected pushed_edges or lowered_onto_table)");
+}
+
+namespace {
+
+// Deterministic pseudo-random number in [-1, 1] from an integer (splitmix64), platform independent.
+Real hashNoise(std::uint64_t k) {
+  std::uint64_t z = k + 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return 2.0 * static_cast<Real>(z >> 11) / static_cast<Real>(1ull << 53) - 1.0;
+}
+
+Real rmsSpeed(const ClothModel& model, const VecX& v) {
+  const VecX& m = model.massPerDof();
+  const Real ke = 0.5 * (m.array() * v.array().square()).sum();
+  return std::sqrt(2 * ke / std::max(m.sum() / model.dofsPerNode(), 1e-300));
+}
+
+}  // namespace
+
+StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const StabilityRunSpec& run) {
+  if (!(sc.side > 0) || !(sc.spacing > 0) || !(sc.spacing < sc.side) || !(sc.hold_time >= 0) ||
+      !std::isfinite(sc.perturbation) || !std::isfinite(sc.noise) || !(sc.push_time > 0) || !(sc.lower_time > 0) || !(sc.table_gap >= 0) ||
+      !(sc.table_friction >= 0) || !(sc.anchor_stiffness > 0))
+    throw std::invalid_argument("compression scene: sizes and times must be positive");
+  if (!(run.dt > 0) || !std::isfinite(run.dt)) throw std::invalid_argument("stability run: dt must be positive");
+
+  TextileOutline outline;
+  outline.name = "square";
+  outline.outline = {Vec2(0, 0), Vec2(sc.side, 0), Vec2(sc.side, sc.side), Vec2(0, sc.side)};
+  std::string error;
+  const ParticleGrid grid = ParticleGrid::rasterize(outline, sc.spacing, &error);
+  if (grid.empty()) throw std::invalid_argument("compression scene: " + error);
+  const ParticleTopology topo = ParticleTopology::fromGrid(grid);
+  const Index n = grid.numActive();
+  const bool pushed = sc.scene == CompressionScene::kPushedEdges;
+  const Real zeta = run.damping ? run.damping_per_s : 0.0;
+
+  std::unique_ptr<ClothModel> model;
+  if (run.model == "choi_ko") {
+    ChoiKoOptions o = run.choi_ko_options;
+    o.settle_damping = zeta;
+    if (pushed) o.gravity = sc.push_gravity;
+    model = std::make_unique<ChoiKoClothModel>(topo, run.material, o);
+  } else if (run.model == "particle_kes") {
+    ParticleModelOptions o = run.particle_options;
+    o.settle_damping = zeta;
+    if (pushed) o.gravity = sc.push_gravity;
+    model = std::make_unique<ParticleClothModel>(topo, run.material, o);
+  } else {
+    throw std::invalid_argument("stability run: unknown model '" + run.model + "' (choi_ko or particle_kes)");
+  }
+
+  // Initial pose with the out-of-plane perturbation: a smooth first mode plus pseudo-random noise.
+  VecX x0(3 * n);
+  for (Index r = 0; r < n; ++r) {
+    const Vec2 q = grid.activePosition(r) - grid.origin();
+    const Real mode = pushed ? std::sin(kPi * q.x() / sc.side) : std::sin(kPi * q.y() / sc.side);
+    const Real off =
+        sc.spacing * (sc.perturbation * mode + sc.noise * hashNoise(static_cast<std::uint64_t>(r)));
+    if (pushed) {
+      x0.segment<3>(3 * r) = Vec3(q.x(), q.y(), off);  // horizontal sheet at z = 0
+    } else {
+      x0.segment<3>(3 * r) = Vec3(q.x(), off, sc.table_gap + q.y());  // vertical sheet above the table
+    }
+  }
+  const VecX v0 = VecX::Zero(3 * n);
+
+  PinnedNodes pins;
+  std::vector<Index> anchored;
+  std::vector<Vec3> anchors;
+  Real end_time = 0;
+  const Index last_col = grid.cols() - 1, last_row = grid.rows() - 1;
+  for (Index r = 0; r < n; ++r) {
+    const Index i = grid.compactRows()[r], j = grid.compactCols()[r];
+    if (pushed) {
+      if (j == last_col) {
+        pins.nodes.push_back(r);
+        pins.anchors.push_back(x0.segment<3>(3 * r));
+      } else if (j == 0) {
+        anchored.push_back(r);
+        anchors.push_back(x0.segment<3>(3 * r));
+      }
+    } else if (i == last_row) {
+      pins.nodes.push_back(r);
+      pins.anchors.push_back(x0.segment<3>(3 * r));
+    }
+  }
+  // The holder follows a smoothstep profile tau^2 (3 - 2 tau) (starts and stops without a jump in
+  // velocity), sampled at kWaypoints + 1 piecewise-linear waypoints.
+  const Real travel_time = pushed ? sc.push_time : sc.lower_time;
+  const Vec3 travel = pushed ? Vec3(-sc.push_fraction * sc.side, 0, 0)
+                             : Vec3(0, 0, -(sc.table_gap + sc.lower_fraction * sc.side));
+  constexpr int kWaypoints = 20;
+  for (int k = 0; k <= kWaypoints; ++k) {
+    const Real tau = static_cast<Real>(k) / kWaypoints;
+    pins.waypoint_times.push_back(tau * travel_time);
+    pins.waypoint_offsets.push_back(tau * tau * (3 - 2 * tau) * travel);
+  }
+  end_time = travel_time + sc.hold_time;
+
+  std::unique_ptr<AnchoredClothModel> anchored_model;
+  ClothModel* sim_model = model.get();
+  if (!anchored.empty()) {
+    anchored_model = std::make_unique<AnchoredClothModel>(*model, anchored, anchors, sc.anchor_stiffness);
+    sim_model = anchored_model.get();
+  }
+
+  SimulationSettings settings;
+  settings.integrator = run.integrator;
+  settings.solver = run.solver;
+  settings.policy = StepPolicy::kFixed;
+  settings.dt = run.dt;
+  settings.dt_min = std::min(settings.dt_min, run.dt);
+  settings.dt_max = std::max(settings.dt_max, run.dt);
+  settings.max_time = end_time;
+  settings.rest_min_time = end_time + 1;  // never stop early at rest
+  settings.max_speed = run.max_rms_speed;
+  settings.max_edge_stretch = run.max_edge_stretch;
+
+  DrapeSimulation sim(*sim_model, pins, settings, x0, v0);
+  std::unique_ptr<ObstaclePass> table;
+  if (!pushed) {
+    ObstacleOptions oo;
+    oo.friction = sc.table_friction;
+    table = std::make_unique<ObstaclePass>(n, pins, oo);
+    PlaneObstacle floor;
+    floor.point = Vec3::Zero();
+    floor.normal = Vec3::UnitZ();
+    table->addPlane(floor);
+    sim.setPostStepPass(table.get());
+  }
+
+  StabilityResult res;
+  res.end_time = end_time;
+  res.nodes = n;
+  const Real chunk = std::max(run.dt, 0.01);
+  RunResult rr;
+  while (sim.time() < end_time - 1e-12) {
+    rr = sim.run(std::min(sim.time() + chunk, end_time));
+    if (rr.diverged) break;
+    res.peak_rms_speed = std::max(res.peak_rms_speed, rmsSpeed(*model, sim.velocities()));
+    res.peak_edge_stretch = std::max(res.peak_edge_stretch, model->maxEdgeStretch(sim.positions()));
+  }
+  res.stable = !rr.diverged && sim.time() >= end_time - 1e-9;
+  res.reason = rr.diverged ? rr.divergence_reason : "";
+  res.sim_time = sim.time();
+  res.steps = rr.steps;
+  res.solver_iterations = rr.solver_iterations;
+  res.wall_time = rr.wall_time;
+  res.obstacle_events = rr.post_step_events;
+  res.final_rms_speed = rmsSpeed(*model, sim.velocities());
+  Real zmin = std::numeric_limits<Real>::infinity();
+  for (Index r = 0; r < n; ++r) zmin = std::min(zmin, sim.positions()[3 * r + 2]);
+  res.final_min_z = zmin;
+  return res;
+}
+
+std::vector<StabilityRow> scanStability(const CompressionSceneSpec& scene, const StabilityRunSpec& run,
+                                        const std::vector<Real>& dts, const std::string& label) {
+  std::vector<StabilityRow> rows;
+  for (Real dt : dts) {
+    StabilityRunSpec r = run;
+    r.dt = dt;
+    StabilityRow row;
+    row.model = label.empty() ? run.model : label;
+    row.scene = toString(scene.scene);
+    row.dt = dt;
+    row.damping = run.damping;
+    row.result = runCompressionScene(scene, r);
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+Real largestStableDt(const std::vector<StabilityRow>& rows) {
+  Real best = 0;
+  for (const auto& r : rows)
+    if (r.result.stable) best = std::max(best, r.dt);
+  return best;
+}
+
+void writeStabilityCsv(std::ostream& os, const std::vector<StabilityRow>& rows) {
+  os << "model,scene,dt_s,damping,stable,reason,sim_time_s,steps,peak_rms_speed_m_s,peak_edge_stretch,wall_s\n";
+  for (const auto& r : rows) {
+    std::string reason = r.result.reason;
+    std::replace(reason.begin(), reason.end(), ',', ';');
+    std::replace(reason.begin(), reason.end(), '"', '\'');
+    os << r.model << ',' << r.scene << ',' << r.dt << ',' << (r.damping ? 1 : 0) << ',' << (r.result.stable ? 1 : 0)
+       << ",\"" << reason << "\"," << r.result.sim_time << ',' << r.result.steps << ',' << r.result.peak_rms_speed
+       << ',' << r.result.peak_edge_stretch << ',' << r.result.wall_time << '\n';
+  }
+}
+
+}  // namespace textile_handling
