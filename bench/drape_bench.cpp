@@ -9,6 +9,11 @@
 // Writes DIR/sim_benchmark.csv and DIR/sim_benchmark.png (wall time against error, log-log, one point
 // per configuration). This is a benchmark, not a test: nothing here asserts timings.
 //
+// Choi-Ko rows (model choi_ko) run the same towel scenes against their own small-step reference and
+// report, in diff_from_particle_m, the mean distance of their rest shape from the particle model's
+// reference rest shape. DIR/stability.csv: the compression scenes of stability_scenes.h for both models,
+// a range of fixed steps, with and without damping (--no-stability skips it).
+//
 // Every run is capped at --max-wall seconds of wall time (default 300): an explicit integrator at
 // d = 0.5 cm would otherwise run for hours; a capped row says so in its note.
 #include <omp.h>
@@ -28,6 +33,7 @@
 
 #include "textile_handling/sim/bench_chart.h"
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/stability_scenes.h"
 
 using namespace textile_handling;
 
@@ -45,7 +51,7 @@ struct Row {
   Index particles = 0;
   long steps = 0, rejected = 0, collision_events = 0, intersecting_pairs = -1;
   Real sim_s = 0, wall_s = 0, ms_per_step = 0, assembly_ms = 0, solve_ms = 0, collision_ms = 0, cg_its = 0;
-  Real mean_err = 0, max_err = 0;
+  Real mean_err = 0, max_err = 0, diff_from_particle = std::nan("");
   bool rest = false, diverged = false;
 };
 
@@ -117,7 +123,7 @@ Run simulate(const DrapeSceneSpec& spec) {
 
 int main(int argc, char** argv) {
   std::string out_dir = "out/bench";
-  bool quick = false;
+  bool quick = false, stability = true;
   Real max_wall = 300;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -125,8 +131,9 @@ int main(int argc, char** argv) {
     else if (a == "--quick") quick = true;
     else if (a == "--threads" && i + 1 < argc) omp_set_num_threads(std::atoi(argv[++i]));
     else if (a == "--max-wall" && i + 1 < argc) max_wall = std::atof(argv[++i]);
+    else if (a == "--no-stability") stability = false;
     else {
-      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S]\n";
+      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S] [--no-stability]\n";
       return 2;
     }
   }
@@ -159,25 +166,39 @@ int main(int argc, char** argv) {
          fastSolver(s);
          s.self_collision = true;
        }},
+      {"choi_ko semi_implicit/error fast", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
+         fastSolver(s);
+         s.model = "choi_ko";
+       }},
+      {"choi_ko semi_implicit/fixed 10 ms, no damping", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kFixed, 0.01)(s);
+         s.model = "choi_ko";
+         s.choi_ko_options.settle_damping = 0;
+       }},
   };
   std::vector<Row> rows;
   std::cout << "drape_bench: " << omp_get_max_threads() << " threads, wall cap " << max_wall << " s per run\n";
   for (Real d : spacings) {
     for (const auto& hold : holds) {
       // References (one per collision setting), semi-implicit Euler at a small fixed step.
-      std::map<bool, Run> refs;
-      for (bool collide : {false, true}) {
+      // Keyed by (model, collision).
+      std::map<std::pair<std::string, bool>, Run> refs;
+      for (const auto& key : std::vector<std::pair<std::string, bool>>{
+               {"particle_kes", false}, {"particle_kes", true}, {"choi_ko", false}}) {
+        const bool collide = key.second;
         DrapeSceneSpec ref_spec = towelSpec(d, hold);
+        ref_spec.model = key.first;
         ref_spec.self_collision = collide;
         ref_spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
         ref_spec.settings.policy = StepPolicy::kFixed;
         ref_spec.settings.dt = 1e-3;
         ref_spec.settings.solver.relative_tolerance = 1e-8;
         ref_spec.settings.solver.max_iterations = 5000;
-        refs[collide] = simulate(ref_spec);
-        const RunResult& rr = refs[collide].result;
-        std::printf("reference d=%.3f %-20s collision=%s rest=%d steps=%ld wall=%.1fs pairs=%ld%s\n", d, hold.c_str(),
-                    collide ? "v3" : "off", rr.rest_reached, rr.steps, rr.wall_time, refs[collide].pairs,
+        refs[key] = simulate(ref_spec);
+        const RunResult& rr = refs[key].result;
+        std::printf("reference %s d=%.3f %-20s collision=%s rest=%d steps=%ld wall=%.1fs pairs=%ld%s\n", key.first.c_str(),
+                    d, hold.c_str(), collide ? "v3" : "off", rr.rest_reached, rr.steps, rr.wall_time, refs[key].pairs,
                     rr.diverged ? (" DIVERGED: " + rr.divergence_reason).c_str() : "");
         std::fflush(stdout);
       }
@@ -187,7 +208,7 @@ int main(int argc, char** argv) {
         spec.settings.max_wall_time = max_wall;
         const Run run = simulate(spec);
         const RunResult& r = run.result;
-        const Run& ref = refs[spec.self_collision];
+        const Run& ref = refs[{spec.model, spec.self_collision}];
         Row row;
         row.model = spec.model;
         row.integrator = toString(spec.settings.integrator);
@@ -216,8 +237,15 @@ int main(int argc, char** argv) {
                    : r.wall_cap_reached ? "wall-time cap"
                                         : "simulated-time cap";
         if (!ref.result.rest_reached) row.note += std::string(row.note.empty() ? "" : "; ") + "reference not at rest";
-        if (!r.diverged) shapeError(run.x, ref.x, &row.mean_err, &row.max_err);
-        else row.mean_err = row.max_err = std::nan("");
+        if (!r.diverged) {
+          shapeError(run.x, ref.x, &row.mean_err, &row.max_err);
+          if (spec.model != "particle_kes") {
+            Real worst = 0;
+            shapeError(run.x, refs[{"particle_kes", false}].x, &row.diff_from_particle, &worst);
+          }
+        } else {
+          row.mean_err = row.max_err = std::nan("");
+        }
         std::printf("  %-30s steps=%6ld rej=%5ld sim=%5.2fs wall=%7.2fs %6.2fms/step (asm %.2f solve %.2f coll %.2f, "
                     "%.1f its) err mean=%.4f max=%.4f m pairs=%ld %s\n",
                     c.label.c_str(), row.steps, row.rejected, row.sim_s, row.wall_s, row.ms_per_step, row.assembly_ms,
@@ -233,13 +261,13 @@ int main(int argc, char** argv) {
     std::ofstream f(csv);
     f << "model,integrator,policy,solver,collision,spacing_m,particles,hold,steps,rejected_steps,sim_time_s,wall_s,"
          "ms_per_step,assembly_ms_per_step,solve_ms_per_step,collision_ms_per_step,collision_events,cg_its_per_step,"
-         "mean_err_m,max_err_m,intersecting_pairs,rest_reached,diverged,threads,note\n";
+         "mean_err_m,max_err_m,diff_from_particle_m,intersecting_pairs,rest_reached,diverged,threads,note\n";
     for (const auto& r : rows)
       f << r.model << ',' << r.integrator << ',' << r.policy << ',' << r.solver << ',' << r.collision << ','
         << r.spacing << ',' << r.particles << ',' << r.hold << ',' << r.steps << ',' << r.rejected << ',' << r.sim_s
         << ',' << r.wall_s << ',' << r.ms_per_step << ',' << r.assembly_ms << ',' << r.solve_ms << ','
         << r.collision_ms << ',' << r.collision_events << ',' << r.cg_its << ',' << r.mean_err << ',' << r.max_err
-        << ',' << r.intersecting_pairs << ',' << (r.rest ? "true" : "false") << ','
+        << ',' << r.diff_from_particle << ',' << r.intersecting_pairs << ',' << (r.rest ? "true" : "false") << ','
         << (r.diverged ? "true" : "false") << ',' << omp_get_max_threads() << ",\"" << r.note << "\"\n";
   }
   std::vector<ChartPoint> points;
@@ -249,13 +277,41 @@ int main(int argc, char** argv) {
     std::snprintf(label, sizeof label, "d=%.1fcm %s%s%s", 100 * r.spacing, r.hold == "corner_ul" ? "corner" : "side",
                   r.collision == "off" ? "" : " v3", r.rest ? "" : " (no rest)");
     const std::string fast = r.solver.find("warm") != std::string::npos ? " fast" : "";
+    const std::string model = r.model == "particle_kes" ? "" : r.model + " ";
     points.push_back({std::max(r.wall_s, 1e-3), std::max(r.mean_err, 1e-6), label,
-                      r.integrator + "/" + r.policy + fast});
+                      model + r.integrator + "/" + r.policy + fast});
   }
   std::string err;
   if (!writeLogLogChart(out_dir + "/sim_benchmark.png", points, "wall time to rest [s]", "mean rest-shape error [m]",
                         "drape_bench: towel 64x46 cm, cotton", &err))
     std::cerr << "drape_bench: " << err << "\n";
   std::cout << "wrote " << csv << " and " << out_dir << "/sim_benchmark.png\n";
+
+  if (stability) {
+    // Largest stable fixed step of each model in the compression scenes, with and without damping.
+    const std::vector<Real> dts = {0.05, 0.02, 0.01, 0.005, 0.002, 0.001};
+    std::vector<StabilityRow> all;
+    for (const auto scene_kind : {CompressionScene::kPushedEdges, CompressionScene::kLoweredOntoTable}) {
+      CompressionSceneSpec scene;
+      scene.scene = scene_kind;
+      scene.spacing = 0.02;
+      for (const std::string model : {"choi_ko", "particle_kes", "particle_kes/definite_fix"}) {
+        for (bool damping : {false, true}) {
+          StabilityRunSpec run;
+          run.model = model == "choi_ko" ? "choi_ko" : "particle_kes";
+          run.damping = damping;
+          if (model == "particle_kes/definite_fix") run.particle_options.jacobian = JacobianMode::kDefiniteFix;
+          const auto rows = scanStability(scene, run, dts, model);
+          std::printf("stability %-26s %-18s damping=%d largest stable dt = %.3f s\n", model.c_str(),
+                      toString(scene_kind).c_str(), damping, largestStableDt(rows));
+          std::fflush(stdout);
+          all.insert(all.end(), rows.begin(), rows.end());
+        }
+      }
+    }
+    std::ofstream f(out_dir + "/stability.csv");
+    writeStabilityCsv(f, all);
+    std::cout << "wrote " << out_dir << "/stability.csv\n";
+  }
   return 0;
 }

@@ -1,11 +1,36 @@
 #!/usr/bin/env bash
-# The main job: installs dependencies, builds, and runs the drape simulation demo — the thesis's
-# 64x46 cm cotton towel held at a corner, simulated from the released flat sheet to rest.
-# Writes out/demo/{result.yaml, rest_positions.csv, rest_shape.png, state.txt}.
-# Usage: bash scripts/demo.sh [SCENE.yaml]
+# The main job: installs dependencies, builds, and runs the cell demo end to end:
+#  1. creates the default drape database on first run (embedded SQLite at out/demo/drapes.sqlite: the
+#     thesis's 64x46 cm cotton towel, 36 hold points in one quadrant at d = 2 cm, 36 views each; the
+#     rest are mirrored), with a progress bar — an interrupted build resumes on the next run;
+#  2. replays the bundled bag (test/data/towel_replay_a.bag: the towel hanging from a gripper in front
+#     of the cell camera, simulated independently at d = 1.5 cm) with simulated time;
+#  3. prints the recognised textile, hold point and grasp poses.
+# Usage: bash scripts/demo.sh [BAG]
 set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 bash "$REPO/scripts/setup.sh"
-SCENE="${1:-$REPO/config/scenes/towel_corner.yaml}"
+BAG="${1:-$REPO/test/data/towel_replay_a.bag}"
 OUT="$REPO/out/demo"
-"$REPO/.build/ws/devel/lib/textile_handling/drape_sim" "$SCENE" --out "$OUT"
+DB="$OUT/drapes.sqlite"
+mkdir -p "$OUT"
+BIN="$REPO/.build/ws/devel/lib/textile_handling"
+# shellcheck disable=SC1091
+source "$REPO/.build/ws/devel/setup.bash"
+echo "[demo] database $DB"
+# Builds what is missing (nothing when complete): the thesis's 6x6 quadrant grid of hold points.
+"$BIN/drape_db" build --db "$DB" --textile towel --grid 6x6 --spacing 0.02 --threads 2
+"$BIN/drape_db" list --db "$DB"
+echo "[demo] replaying $BAG"
+set +e
+roslaunch textile_handling demo.launch bag:="$BAG" database_path:="$DB" > "$OUT/replay.log" 2>&1 &
+LAUNCH=$!
+tail -n +1 -f "$OUT/replay.log" --pid=$LAUNCH | grep --line-buffered -E "^\[recognition\]|^    [a-z]|FATAL|\[ERROR\]"
+wait $LAUNCH
+set -e
+if grep -q "^\[recognition\] frame .* held at" "$OUT/replay.log"; then
+  echo "[demo] done; full log in $OUT/replay.log"
+else
+  echo "[demo] no recognition result; see $OUT/replay.log" >&2
+  exit 1
+fi

@@ -92,6 +92,10 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
       static_cast<int>(finiteParam(pnh, "segmentation/min_area_px", o.segmentation.min_area_px, 1.0));
   o.geometry.max_elevation_deg = finiteParam(pnh, "max_elevation_deg", o.geometry.max_elevation_deg, 0.0);
   pnh.param("refine", o.refinement.enabled, o.refinement.enabled);
+  pnh.param("fusion_views", fusion_views_, fusion_views_);
+  if (fusion_views_ < 1) throw std::runtime_error("parameter ~fusion_views must be >= 1");
+  fusion_window_s_ = finiteParam(pnh, "fusion_window_s", fusion_window_s_, 0.0);
+  fusion_min_separation_deg_ = finiteParam(pnh, "fusion_min_separation_deg", fusion_min_separation_deg_, 0.0);
   try {
     o.validate();
     recognizer_ = std::make_unique<recognition::TextileRecognizer>(db_path, o);
@@ -233,12 +237,42 @@ void TextileRecognizerNode::process(const Frame& f) {
   obs.hold_camera = camera_gripper.translation();
   obs.up_camera = camera_up.linear() * Vec3::UnitZ();
   obs.heading_camera = Vec3(camera_gripper.linear() * Vec3::UnitX());
+  // Gripper heading about the up axis (for choosing fusion partners): the gripper x axis in the up frame.
+  const Eigen::Isometry3d up_gripper = camera_up.inverse() * camera_gripper;
+  const Vec3 gx = up_gripper.linear() * Vec3::UnitX();
+  const double yaw = std::atan2(gx.y(), gx.x()) * 180.0 / M_PI;
+  // Forget observations of another hold: too old, or the gripper moved (not only turned).
+  while (!history_.empty() && (h.stamp < history_.back().stamp ||
+                               (h.stamp - history_.front().stamp).toSec() > fusion_window_s_))
+    history_.pop_front();
+  std::vector<recognition::CameraObservation> images{obs};
+  std::vector<double> chosen_yaws{yaw};
+  for (auto it = history_.rbegin(); it != history_.rend() && static_cast<int>(images.size()) < fusion_views_; ++it) {
+    bool distinct = true;  // the partner must differ from every image already chosen
+    for (double y : chosen_yaws)
+      distinct = distinct && std::fabs(std::remainder(it->gripper_yaw_deg - y, 360.0)) >= fusion_min_separation_deg_;
+    if (!distinct) continue;
+    images.push_back(it->observation);
+    chosen_yaws.push_back(it->gripper_yaw_deg);
+  }
   recognition::RecognitionResult res;
   try {
-    res = recognizer_->recognize(obs);
+    res = images.size() > 1 ? recognizer_->recognize(images) : recognizer_->recognize(obs);
   } catch (const std::exception& e) {
-    return publishFailure(h, e.what());
+    // A failed fusion (e.g. a bad earlier frame) falls back to this image alone.
+    if (images.size() > 1) {
+      try {
+        res = recognizer_->recognize(obs);
+        images.resize(1);
+      } catch (const std::exception& e2) {
+        return publishFailure(h, e2.what());
+      }
+    } else {
+      return publishFailure(h, e.what());
+    }
   }
+  history_.push_back(Past{h.stamp, yaw, obs});
+  if (history_.size() > 16) history_.pop_front();
   // Poses: camera frame -> gripper frame.
   const Eigen::Isometry3d gripper_camera = camera_gripper.inverse();
   RecognitionResult out;
@@ -260,6 +294,7 @@ void TextileRecognizerNode::process(const Frame& f) {
   out.confidence = res.confidence;
   out.front_back_ambiguous = res.front_back_ambiguous;
   out.depth_used = res.depth_used;
+  out.images_fused = static_cast<int>(images.size());
   for (const auto& c : res.top_k) {
     RecognitionCandidate rc;
     rc.textile_id = c.textile_id;
@@ -299,9 +334,10 @@ void TextileRecognizerNode::process(const Frame& f) {
       ROS_WARN_THROTTLE_NAMED(5.0, "textile_recognizer", "debug image: %s", e.what());
     }
   }
-  ROS_INFO_THROTTLE_NAMED(1.0, "textile_recognizer", "%s held at (%.3f, %.3f) m, view %.0f deg, score %.2f (+%.2f), %.0f ms",
+  ROS_INFO_THROTTLE_NAMED(1.0, "textile_recognizer",
+                          "%s held at (%.3f, %.3f) m, view %.0f deg, score %.2f (+%.2f), %zu image(s), %.0f ms",
                           out.textile_name.c_str(), out.hold_x, out.hold_y, out.view_angle_deg, out.score,
-                          out.confidence, out.processing_ms);
+                          out.confidence, images.size(), out.processing_ms);
 }
 
 }  // namespace textile_handling

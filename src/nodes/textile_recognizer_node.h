@@ -14,6 +14,7 @@
 
 #include <atomic>
 #include <condition_variable>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -60,6 +61,18 @@ class TextileRecognizerNode {
   double tf_timeout_s_ = 0.2;
   double depth_max_age_s_ = 0.05;
   bool use_depth_ = false;
+  // Multi-image fusion (thesis: two images): earlier observations of the same hold, kept while the
+  // gripper turns; a new frame is fused with up to fusion_views - 1 of them whose view azimuth differs by
+  // at least fusion_min_separation_deg.
+  int fusion_views_ = 2;
+  double fusion_window_s_ = 20.0;
+  double fusion_min_separation_deg_ = 20.0;
+  struct Past {
+    ros::Time stamp;
+    double gripper_yaw_deg = 0;  // heading of the gripper about the up axis, in the up frame
+    recognition::CameraObservation observation;
+  };
+  std::deque<Past> history_;  // worker thread only
   std::unique_ptr<recognition::TextileRecognizer> recognizer_;
 
   std::mutex mutex_;

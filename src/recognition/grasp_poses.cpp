@@ -114,6 +114,21 @@ VecX placeInHoldFrame(const VecX& x, Index held, double rotation_deg) {
   return out;
 }
 
+VecX reflectAcrossView(const VecX& x, Index held, double view_deg) {
+  if (x.size() == 0 || x.size() % 3 != 0) throw std::invalid_argument("reflectAcrossView: positions must be 3 per particle");
+  if (held < 0 || 3 * static_cast<Eigen::Index>(held) >= x.size())
+    throw std::invalid_argument("reflectAcrossView: held particle out of range");
+  const double a = view_deg * kPi / 180.0;
+  const Vec3 d(-std::sin(a), std::cos(a), 0.0);
+  const Vec3 h = particle(x, held);
+  VecX out(x.size());
+  for (Eigen::Index k = 0; k < x.size() / 3; ++k) {
+    const Vec3 p = x.segment<3>(3 * k);
+    out.segment<3>(3 * k) = p - 2.0 * (p - h).dot(d) * d;
+  }
+  return out;
+}
+
 std::vector<GraspPose> computeGraspPoses(const TextileOutline& textile, const ParticleGrid& grid, const VecX& x,
                                          Index held, double rotation_deg, const HoldGeometry& geometry,
                                          const GraspPoseOptions& o) {

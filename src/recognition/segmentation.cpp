@@ -110,7 +110,7 @@ void SegmentationOptions::validate() const {
   const DepthSegmentationOptions& d = depth;
   if (!(d.half_width_m > 0) || !std::isfinite(d.half_width_m) || !(d.max_drop_m > 0) || !std::isfinite(d.max_drop_m) ||
       !std::isfinite(d.top_m) || !(d.cluster_tolerance_m > 0) || !std::isfinite(d.cluster_tolerance_m) ||
-      !(d.seed_radius_m > 0) || !std::isfinite(d.seed_radius_m))
+      !(d.seed_radius_m > 0) || !std::isfinite(d.seed_radius_m) || !(d.voxel_size_m >= 0) || !std::isfinite(d.voxel_size_m))
     optionError("depth crop box, cluster tolerance and seed radius must be finite and > 0");
   if (d.neighbour_radius_px < 1 || d.neighbour_radius_px > 10 || d.min_cluster_points < 1 || d.splat_radius_px < 0 ||
       d.splat_radius_px > 20)
@@ -249,8 +249,11 @@ SegmentationResult segmentTextile(const cv::Mat& image, const std::string& encod
       }
     }
     if (use_depth) {
-      cv::Mat gate = depth_cluster;
-      if (o.depth_mode == DepthMode::kGate && o.gate_dilation_px > 0) cv::dilate(depth_cluster, gate, ellipse(o.gate_dilation_px));
+      cv::Mat gate;  // never write into the caller's mask
+      if (o.depth_mode == DepthMode::kGate && o.gate_dilation_px > 0)
+        cv::dilate(depth_cluster, gate, ellipse(o.gate_dilation_px));
+      else
+        gate = depth_cluster;
       cv::bitwise_and(mask, gate, mask);
     }
   }

@@ -51,10 +51,11 @@ struct TextileRecognizer::State {
   RecognizerOptions options;
   std::vector<std::shared_ptr<const LoadedIndex>> indices;
   std::map<std::string, db::TextileRecord> textiles;  // all textiles, by name
-  db::DatabaseCounts counts;
-  std::int64_t counts_textile = 0;
+  std::string fingerprint;
   std::size_t silhouettes = 0, hold_points = 0;
   std::vector<std::string> warnings;
+  mutable std::mutex cache_mutex;  // rest shapes loaded on demand
+  mutable std::map<std::int64_t, std::shared_ptr<const StoredShape>> cache;
 };
 
 struct TextileRecognizer::StoredShape {
@@ -80,6 +81,9 @@ void RecognizerOptions::validate() const {
   if (!(r.depth_yaw_range_deg >= 0 && r.depth_yaw_range_deg <= 180) || !(r.depth_yaw_step_deg > 0 && r.depth_yaw_step_deg <= 30))
     bad("refinement.depth_yaw_range_deg must be in [0, 180] and depth_yaw_step_deg in (0, 30]");
   if (r.depth_min_pixels < 1) bad("refinement.depth_min_pixels must be >= 1");
+  if (!(r.depth_truncation_m > 0) || !std::isfinite(r.depth_truncation_m)) bad("refinement.depth_truncation_m must be finite and > 0");
+  if (!(r.depth_member_slack >= 0 && r.depth_member_slack <= 1) || !(r.depth_weight_per_m >= 0) || !std::isfinite(r.depth_weight_per_m))
+    bad("refinement.depth_member_slack must be in [0, 1] and depth_weight_per_m finite and >= 0");
   if (mesh_cache_size < 1) bad("mesh_cache_size must be >= 1");
   if (!(grasp.boundary_tolerance_m >= 0) || !std::isfinite(grasp.boundary_tolerance_m))
     bad("grasp.boundary_tolerance_m must be finite and >= 0");
@@ -121,6 +125,21 @@ std::vector<double> doneSpacings(const db::HangingDrapeDatabase& db, std::int64_
   });
 }
 
+// Everything a reload depends on, as text: textiles, finished simulations (count, id sum and maximum,
+// latest finish time: simulation ids are reused after a resimulation deletes rows), views.
+std::string databaseFingerprint(const db::HangingDrapeDatabase& db) {
+  return db.withConnection([](db::SqliteConnection& c) {
+    db::SqliteStatement st = c.prepare(
+        "SELECT (SELECT count(*) FROM textiles), (SELECT COALESCE(max(id), 0) FROM textiles), count(*), "
+        "COALESCE(sum(id), 0), COALESCE(max(id), 0), COALESCE(max(finished_at), ''), (SELECT count(*) FROM views), "
+        "(SELECT COALESCE(max(id), 0) FROM views) FROM simulations WHERE status = 'done'");
+    std::string out;
+    if (st.step())
+      for (int k = 0; k < 8; ++k) out += (k == 5 ? st.getText(k) : std::to_string(st.getInt(k))) + "|";
+    return out;
+  });
+}
+
 std::shared_ptr<const TextileRecognizer::State> loadState(const db::HangingDrapeDatabase& db, const RecognizerOptions& o) {
   auto st = std::make_shared<TextileRecognizer::State>();
   st->options = o;
@@ -142,8 +161,7 @@ std::shared_ptr<const TextileRecognizer::State> loadState(const db::HangingDrape
     } else {
       selected = all;
     }
-    st->counts_textile = selected.size() == 1 && (o.textile_id > 0 || !o.textile_name.empty()) ? selected.front().id : 0;
-    st->counts = db.counts(st->counts_textile);
+    st->fingerprint = databaseFingerprint(db);
     for (const auto& t : selected) {
       db::MatchIndexOptions mio;
       mio.textile = t.outline.name;
@@ -218,22 +236,13 @@ void TextileRecognizer::reload() {
 
 bool TextileRecognizer::reloadIfChanged() {
   const auto st = state();
-  db::DatabaseCounts now;
+  std::string now;
   try {
-    now = db_->counts(st->counts_textile);
+    now = databaseFingerprint(*db_);
   } catch (const std::exception& e) {
-    fail(RecognitionErrorCode::kDatabase, std::string("reading the database counts: ") + e.what());
+    fail(RecognitionErrorCode::kDatabase, std::string("reading the database: ") + e.what());
   }
-  const db::DatabaseCounts& was = st->counts;
-  std::size_t textiles = 0;
-  try {
-    textiles = db_->textiles().size();
-  } catch (const std::exception& e) {
-    fail(RecognitionErrorCode::kDatabase, std::string("listing the textiles: ") + e.what());
-  }
-  if (now.done == was.done && now.views == was.views && now.simulations == was.simulations &&
-      now.textiles == was.textiles && textiles == st->textiles.size())
-    return false;
+  if (now == st->fingerprint) return false;
   reload();
   return true;
 }
@@ -283,34 +292,43 @@ db::TextileRecord TextileRecognizer::textile(std::int64_t id) const {
   }
 }
 
-std::shared_ptr<const TextileRecognizer::StoredShape> TextileRecognizer::shape(std::int64_t simulation_id) const {
+std::shared_ptr<const TextileRecognizer::StoredShape> TextileRecognizer::shape(const State& st, std::int64_t simulation_id,
+                                                                            const Vec2& expected_hold) const {
+  std::shared_ptr<const StoredShape> found;
   {
-    std::lock_guard<std::mutex> lock(cache_mutex_);
-    const auto it = cache_.find(simulation_id);
-    if (it != cache_.end()) return it->second;
+    std::lock_guard<std::mutex> lock(st.cache_mutex);
+    const auto it = st.cache.find(simulation_id);
+    if (it != st.cache.end()) found = it->second;
   }
-  auto s = std::make_shared<StoredShape>();
-  try {
-    db::StoredDrapeMesh m = db::loadDrapeMesh(*db_, simulation_id);
-    s->record = m.record;
-    s->textile = m.textile;
-    s->positions = std::move(m.positions);
-    s->triangles = std::move(m.triangles);
-    s->held = m.held_particle;
-    std::string err;
-    s->grid = ParticleGrid::rasterize(s->textile.outline, s->record.spacing, &err);
-    if (s->grid.empty() || 3 * static_cast<Eigen::Index>(s->grid.numActive()) != s->positions.size())
-      fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(simulation_id) + ": cannot rebuild its grid " + err);
-  } catch (const RecognitionError&) {
-    throw;
-  } catch (const std::exception& e) {
-    fail(RecognitionErrorCode::kDatabase, "loading the rest shape of simulation " + std::to_string(simulation_id) + ": " + e.what());
+  if (!found) {
+    auto s = std::make_shared<StoredShape>();
+    try {
+      db::StoredDrapeMesh m = db::loadDrapeMesh(*db_, simulation_id);
+      s->record = m.record;
+      s->textile = m.textile;
+      s->positions = std::move(m.positions);
+      s->triangles = std::move(m.triangles);
+      s->held = m.held_particle;
+      std::string err;
+      s->grid = ParticleGrid::rasterize(s->textile.outline, s->record.spacing, &err);
+      if (s->grid.empty() || 3 * static_cast<Eigen::Index>(s->grid.numActive()) != s->positions.size())
+        fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(simulation_id) + ": cannot rebuild its grid " + err);
+    } catch (const RecognitionError&) {
+      throw;
+    } catch (const std::exception& e) {
+      fail(RecognitionErrorCode::kDatabase,
+           "loading the rest shape of simulation " + std::to_string(simulation_id) + ": " + e.what() +
+               " (has the database changed? reload)");
+    }
+    std::lock_guard<std::mutex> lock(st.cache_mutex);
+    if (st.cache.size() >= st.options.mesh_cache_size) st.cache.clear();
+    st.cache[simulation_id] = s;
+    found = s;
   }
-  std::lock_guard<std::mutex> lock(cache_mutex_);
-  const std::size_t limit = options().mesh_cache_size;
-  if (cache_.size() >= limit) cache_.clear();
-  cache_[simulation_id] = s;
-  return s;
+  if ((found->record.hold - expected_hold).norm() > 1e-9)
+    fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(simulation_id) +
+                                              " no longer holds the indexed hold point: the database changed; reload");
+  return found;
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -386,6 +404,8 @@ struct MemberFit {
   double score = -1;
   int dx = 0, dy = 0;
   double depth_residual = -1;
+  bool reflected = false;
+  double reflection_view = 0;
 };
 
 std::string frameKey(const vision::CanonicalFrame& f) {
@@ -406,13 +426,6 @@ std::size_t nearestView(const std::vector<std::pair<double, vision::BitMask>>& v
     }
   }
   return best;
-}
-
-// Which group elements map a to b (1 mm).
-bool relatedBy(const db::TextileSymmetry& s, db::MirrorKind m, const Vec2& a, const Vec2& b) {
-  for (db::MirrorKind k : s.mirrors())
-    if (k == m) return (s.apply(m, a) - b).norm() < 1e-3;
-  return false;
 }
 
 }  // namespace
@@ -521,16 +534,16 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   const std::size_t n_refine = ro.enabled ? std::min<std::size_t>(static_cast<std::size_t>(ro.classes), coarse.size()) : 0;
   const int R = ro.max_shift_px;
   std::vector<std::vector<MemberFit>> fits(coarse.size());
-  auto renderFor = [&](const StoredShape& s, double angle, const PreparedImage& im, const vision::CanonicalFrame& f) {
+  auto renderFor = [&](const VecX& x, const StoredShape& s, double angle, const PreparedImage& im,
+                       const vision::CanonicalFrame& f) {
     if (ro.camera_projection) {
       try {
-        return vision::renderSilhouette(s.positions, s.triangles, s.held, wrapDegrees(angle), im.g.projection(), f);
+        return vision::renderSilhouette(x, s.triangles, s.held, wrapDegrees(angle), im.g.projection(), f);
       } catch (const std::invalid_argument&) {
         // camera inside the textile's reach: fall back to the orthographic projection
       }
     }
-    return vision::renderSilhouette(s.positions, s.triangles, s.held, wrapDegrees(angle),
-                                    vision::SilhouetteProjection::orthographic(), f);
+    return vision::renderSilhouette(x, s.triangles, s.held, wrapDegrees(angle), vision::SilhouetteProjection::orthographic(), f);
   };
   for (std::size_t c = 0; c < n_refine; ++c) {
     const LoadedIndex& li = *coarse[c].li;
@@ -557,14 +570,14 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
         }
       }
       // Fine azimuths with the camera's projection.
-      const auto shape_ptr = shape(li.index.hold_points[hp].simulation_id);
+      const auto shape_ptr = shape(*st, li.index.hold_points[hp].simulation_id, li.index.hold_points[hp].hold);
       const StoredShape& s = *shape_ptr;
       for (int k = -steps; k <= steps; ++k) {
         const double a = fit.coarse_angle + k * ro.step_deg;
         double sum = 0;
         int dx = 0, dy = 0;
         for (std::size_t i = 0; i < n; ++i) {
-          const vision::BitMask r = renderFor(s, a + imgs[i].relative_view_deg, imgs[i], li.index.frame);
+          const vision::BitMask r = renderFor(s.positions, s, a + imgs[i].relative_view_deg, imgs[i], li.index.frame);
           const vision::ShiftedIou si = vision::bestShiftIou(q[i], r, R, R);
           sum += si.score;
           if (i == 0) {
@@ -636,6 +649,14 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
     std::stable_sort(cands.begin(), cands.begin() + static_cast<long>(n_refine),
                      [](const Cand& a, const Cand& b) { return a.h.score > b.h.score; });
 
+  // Confidence: the winner's silhouette score minus the runner-up class's (refined scores if both were
+  // refined, else the coarse margin).
+  double confidence = coarse_margin_all;
+  if (cands.size() == 1)
+    confidence = cands.front().h.score;
+  else if (cands[0].h.refined && cands[1].h.refined)
+    confidence = cands[0].h.score - cands[1].h.score;
+
   // Depth: choose among the winner's near-best members by the fit of predicted to measured depth.
   Cand& win = cands.front();
   const LoadedIndex& wli = *coarse[win.coarse].li;
@@ -648,9 +669,9 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   auto rotationFor = [&](double base_angle, std::size_t i) {
     return imgs[i].g.camera_azimuth_deg - (base_angle + imgs[i].relative_view_deg);
   };
-  auto depthResidual = [&](const StoredShape& s, double base_angle) -> double {
+  auto depthResidual = [&](const VecX& x, const StoredShape& s, double base_angle) -> double {
     const PreparedImage& im = imgs[depth_image];
-    const VecX ph = placeInHoldFrame(s.positions, s.held, rotationFor(base_angle, depth_image));
+    const VecX ph = placeInHoldFrame(x, s.held, rotationFor(base_angle, depth_image));
     VecX pc(ph.size());
     const auto& k = im.g.intrinsics;
     double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
@@ -682,58 +703,79 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
         if (mk[x + ix0] && std::isfinite(pd[x]) && std::isfinite(md[x + ix0])) diffs.push_back(std::abs(pd[x] - md[x + ix0]));
     }
     if (static_cast<int>(diffs.size()) < ro.depth_min_pixels) return -1;
-    std::nth_element(diffs.begin(), diffs.begin() + static_cast<long>(diffs.size() / 2), diffs.end());
-    return diffs[diffs.size() / 2];
+    double sum = 0;
+    for (float d : diffs) sum += std::min(static_cast<double>(d), ro.depth_truncation_m);
+    return sum / static_cast<double>(diffs.size());
   };
   auto& wfits = fits[win.coarse];
   const auto& wq = canonical(wli.index.frame);
-  auto silhouetteScore = [&](const StoredShape& s, double base) {
+  auto silhouetteScore = [&](const VecX& x, const StoredShape& s, double base) {
     double sum = 0;
     for (std::size_t i = 0; i < n; ++i)
-      sum += vision::bestShiftIou(wq[i], renderFor(s, base + imgs[i].relative_view_deg, imgs[i], wli.index.frame), R, R).score;
+      sum += vision::bestShiftIou(wq[i], renderFor(x, s, base + imgs[i].relative_view_deg, imgs[i], wli.index.frame), R, R).score;
     return sum / static_cast<double>(n);
   };
   if (!wfits.empty() && depth_image < n && ro.use_depth) {
-    // Every member within the slack of the best one: the azimuth (within depth_yaw_range_deg, keeping the
-    // silhouette within the slack of the member's best) that fits the measured depth best; then the
-    // member with the best fit.
+    // Members within depth_member_slack of the best one, as stored and (consider_reflections) mirrored
+    // front-to-back, at azimuths within depth_yaw_range_deg whose silhouette score stays within
+    // depth_score_slack of the member's best: the lowest cost (1 - IoU) + depth_weight_per_m * residual.
     const double top = wfits[win.member].score;
-    std::size_t best = win.member;
+    std::size_t best = wfits.size();
+    double best_cost = std::numeric_limits<double>::infinity();
     int evaluated = 0;
     for (std::size_t k = 0; k < wfits.size(); ++k) {
       MemberFit& f = wfits[k];
-      if (f.score < top - ro.depth_score_slack) continue;
-      const auto sp = shape(wli.index.hold_points[f.hold_point].simulation_id);
+      if (f.score < top - ro.depth_member_slack) continue;
+      const auto sp = shape(*st, wli.index.hold_points[f.hold_point].simulation_id, wli.index.hold_points[f.hold_point].hold);
       const double floor_iou = f.score - ro.depth_score_slack;
-      double best_res = -1, best_angle = f.angle, best_iou = f.score;
-      auto consider = [&](double a, double iou) {
-        if (iou < floor_iou) return;
-        const double r = depthResidual(*sp, a);
-        if (r >= 0 && (best_res < 0 || r < best_res - 1e-9)) {
-          best_res = r;
-          best_angle = wrapDegrees(a);
-          best_iou = iou;
+      const double centre0 = f.angle;
+      double m_cost = std::numeric_limits<double>::infinity(), m_res = -1, m_angle = f.angle, m_iou = f.score;
+      bool m_reflected = false;
+      for (int refl = 0; refl < (ro.consider_reflections ? 2 : 1); ++refl) {
+        const VecX x = refl ? reflectAcrossView(sp->positions, sp->held, centre0) : sp->positions;
+        double local_cost = std::numeric_limits<double>::infinity(), local_angle = centre0;
+        auto consider = [&](double a, double iou) {
+          if (iou < floor_iou) return;
+          const double r = depthResidual(x, *sp, a);
+          if (r < 0) return;
+          const double cost = (1.0 - iou) + ro.depth_weight_per_m * r;
+          if (cost < local_cost - 1e-12) {
+            local_cost = cost;
+            local_angle = a;
+          }
+          if (cost < m_cost - 1e-12) {
+            m_cost = cost;
+            m_res = r;
+            m_angle = wrapDegrees(a);
+            m_iou = iou;
+            m_reflected = refl != 0;
+          }
+        };
+        consider(centre0, refl ? silhouetteScore(x, *sp, centre0) : f.score);
+        const int coarse_steps = static_cast<int>(std::floor(ro.depth_yaw_range_deg / ro.depth_yaw_step_deg + 1e-9));
+        for (int j = -coarse_steps; j <= coarse_steps; ++j)
+          if (j != 0) consider(centre0 + j * ro.depth_yaw_step_deg, silhouetteScore(x, *sp, centre0 + j * ro.depth_yaw_step_deg));
+        if (ro.depth_yaw_step_deg > ro.step_deg && std::isfinite(local_cost)) {
+          const double c = local_angle;
+          const int fine = static_cast<int>(std::floor(0.5 * ro.depth_yaw_step_deg / ro.step_deg + 1e-9));
+          for (int j = -fine; j <= fine; ++j)
+            if (j != 0) consider(c + j * ro.step_deg, silhouetteScore(x, *sp, c + j * ro.step_deg));
         }
-      };
-      consider(f.angle, f.score);
-      const int coarse_steps = static_cast<int>(std::floor(ro.depth_yaw_range_deg / ro.depth_yaw_step_deg + 1e-9));
-      for (int j = -coarse_steps; j <= coarse_steps; ++j)
-        if (j != 0) consider(f.angle + j * ro.depth_yaw_step_deg, silhouetteScore(*sp, f.angle + j * ro.depth_yaw_step_deg));
-      if (ro.depth_yaw_step_deg > ro.step_deg) {
-        const double centre = best_angle;
-        const int fine = static_cast<int>(std::floor(0.5 * ro.depth_yaw_step_deg / ro.step_deg + 1e-9));
-        for (int j = -fine; j <= fine; ++j)
-          if (j != 0) consider(centre + j * ro.step_deg, silhouetteScore(*sp, centre + j * ro.step_deg));
       }
-      if (best_res < 0) continue;
-      f.depth_residual = best_res;
-      f.angle = best_angle;
-      f.score = best_iou;
+      if (m_res < 0) continue;
+      f.depth_residual = m_res;
+      f.angle = m_angle;
+      f.score = m_iou;
+      f.reflected = m_reflected;
+      f.reflection_view = centre0;
       ++evaluated;
-      if (wfits[best].depth_residual < 0 || f.depth_residual < wfits[best].depth_residual) best = k;
+      if (m_cost < best_cost) {
+        best_cost = m_cost;
+        best = k;
+      }
     }
-    if (wfits[best].depth_residual >= 0) {
-      res.depth_decided = evaluated >= 2;
+    if (best < wfits.size()) {
+      res.depth_decided = ro.consider_reflections || evaluated >= 2;
       win.member = best;
       const MemberFit& f = wfits[best];
       const db::IndexedHoldPoint& ih = wli.index.hold_points[f.hold_point];
@@ -745,10 +787,12 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
       win.h.view_angle_deg = f.angle;
       win.h.score = f.score;
       win.h.depth_residual_m = f.depth_residual;
+      win.h.reflected = f.reflected;
+      win.h.reflection_view_deg = f.reflection_view;
     }
   } else if (depth_image < n && ro.use_depth) {
-    const auto sp = shape(win.h.simulation_id);
-    win.h.depth_residual_m = depthResidual(*sp, win.h.view_angle_deg);
+    const auto sp = shape(*st, win.h.simulation_id, win.h.hold_point);
+    win.h.depth_residual_m = depthResidual(sp->positions, *sp, win.h.view_angle_deg);
   }
   res.refine_ms = msSince(t_refine);
 
@@ -767,50 +811,33 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   res.rotation_deg = signedWrap(rotationFor(w.view_angle_deg, 0));
   res.score = w.score;
   res.depth_residual_m = w.depth_residual_m;
+  res.reflected = w.reflected;
+  res.reflection_view_deg = w.reflection_view_deg;
   res.coarse_margin = coarse_margin_all;
-  if (cands.size() > 1 && cands[1].h.refined == w.refined)
-    res.confidence = w.score - cands[1].h.score;
-  else if (cands.size() == 1)
-    res.confidence = w.score;
-  else
-    res.confidence = coarse_margin_all;
+  res.confidence = confidence;
   for (std::size_t k = 0; k < cands.size() && static_cast<int>(k) < o.match.top_k; ++k) res.top_k.push_back(cands[k].h);
 
-  // Front/back ambiguity: a mirror (not a half turn) relates two members, and neither a second view
-  // direction nor depth told them apart.
+  // Front/back ambiguity: one view direction explains a shape and its mirror image across the vertical
+  // plane perpendicular to the view equally well (orthographic silhouettes are identical). A second view
+  // direction or a depth decision resolves it.
   {
-    const auto sym_it = wli.index.symmetry.find(w.textile_name);
-    bool reflection = false;
-    if (sym_it != wli.index.symmetry.end()) {
-      const auto& members = wli.index.classes[w.class_index].members;
-      for (std::size_t a = 0; a < members.size() && !reflection; ++a)
-        for (std::size_t b = a + 1; b < members.size(); ++b) {
-          const Vec2 ha = wli.index.hold_points[members[a]].hold, hb = wli.index.hold_points[members[b]].hold;
-          const bool mirror = relatedBy(sym_it->second, db::MirrorKind::kMirrorX, ha, hb) ||
-                              relatedBy(sym_it->second, db::MirrorKind::kMirrorY, ha, hb);
-          const bool turn = relatedBy(sym_it->second, db::MirrorKind::kMirrorXY, ha, hb);
-          if (mirror && !turn) {
-            reflection = true;
-            break;
-          }
-        }
-    }
     bool second_direction = false;
     for (std::size_t i = 1; i < n; ++i) {
       const double r = std::fmod(std::abs(imgs[i].relative_view_deg), 180.0);
       if (std::min(r, 180.0 - r) > 5.0) second_direction = true;
     }
-    res.front_back_ambiguous = reflection && !second_direction && !res.depth_decided;
+    res.front_back_ambiguous = !second_direction && !res.depth_decided;
   }
 
   // Grasp poses and the matched silhouette.
-  const auto sp = shape(w.simulation_id);
+  const auto sp = shape(*st, w.simulation_id, w.hold_point);
   try {
-    res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, sp->positions, sp->held,
-                                        rotationFor(w.view_angle_deg, 0), imgs[0].g, o.grasp);
+    const VecX x = w.reflected ? reflectAcrossView(sp->positions, sp->held, w.reflection_view_deg) : sp->positions;
+    res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rotationFor(w.view_angle_deg, 0),
+                                        imgs[0].g, o.grasp);
     res.frame = wli.index.frame;
     res.query_masks = canonical(wli.index.frame);
-    res.matched_mask = renderFor(*sp, w.view_angle_deg, imgs[0], wli.index.frame);
+    res.matched_mask = renderFor(x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);
   } catch (const std::invalid_argument& e) {
     fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
   }
@@ -836,8 +863,9 @@ cv::Mat TextileRecognizer::debugImage(const CameraObservation& obs, const Recogn
     blended.copyTo(out, r.image_masks[0]);
   }
   // Matched shape rendered into the camera.
-  const auto sp = shape(r.simulation_id);
-  const VecX ph = placeInHoldFrame(sp->positions, sp->held, r.rotation_deg);
+  const auto sp = shape(*state(), r.simulation_id, r.hold_point);
+  const VecX x = r.reflected ? reflectAcrossView(sp->positions, sp->held, r.reflection_view_deg) : sp->positions;
+  const VecX ph = placeInHoldFrame(x, sp->held, r.rotation_deg);
   VecX pc(ph.size());
   for (Eigen::Index v = 0; v < ph.size() / 3; ++v) pc.segment<3>(3 * v) = g.holdToCamera(ph.segment<3>(3 * v));
   vision::ShadedRenderOptions rop;

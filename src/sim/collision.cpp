@@ -7,6 +7,8 @@
 #include <limits>
 #include <stdexcept>
 #include <unordered_map>
+#include <map>
+#include <tuple>
 #include <cstdio>
 #include <cstdlib>
 
@@ -744,7 +746,8 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       const Index a = tris_.edges[static_cast<size_t>(e)][0], b = tris_.edges[static_cast<size_t>(e)][1];
       const Real wa = inv_mass_[static_cast<size_t>(a)], wb = inv_mass_[static_cast<size_t>(b)];
       if (!(wa + wb > 0)) continue;
-      const Real L = (node3(x_pred, a) - node3(x_pred, b)).norm();
+      static const int lmode = std::getenv("LMODE") ? std::atoi(std::getenv("LMODE")) : 0;
+      const Real L = lmode == 1 ? (node3(x_old, a) - node3(x_old, b)).norm() : (node3(x_pred, a) - node3(x_pred, b)).norm();
       const Vec3 d = node3(x, a) - node3(x, b);
       const Real len = d.norm();
       if (!(len > 0)) continue;
@@ -788,7 +791,13 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       if (!(worst <= 1e-6 * big + 1e-15)) h = -1;
     }
   }
-  if (h > 0) {
+  static const int vmode = std::getenv("VMODE") ? std::atoi(std::getenv("VMODE")) : 0;
+  if (vmode == 1) {
+  } else if (vmode == 2) {
+    for (size_t k = 0; k < pairs.size(); ++k)
+      if (active[k])
+        for (int j = 0; j < 4; ++j) { const Index p = pairs[k].idx[j]; node3(v, p) = (Vec3(node3(x, p)) - Vec3(node3(x_old, p))) / h; }
+  } else if (h > 0 && vmode != 3) {
     for (Index p : region) node3(v, p) += (Vec3(node3(x, p)) - Vec3(node3(x_pred, p))) / h;
   } else {
     for (int it = 0; it < options_.proximity_iterations; ++it) {
@@ -810,6 +819,17 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
   }
   long contacts = 0;
   for (char a : active) contacts += a;
+  if (std::getenv("CHATTER")) {
+    static std::map<std::tuple<int, long, long>, char> prev;
+    static long steps = 0, flips = 0, total = 0, fa = 0, fb = 0, fc = 0, fee = 0;
+    std::map<std::tuple<int, long, long>, char> cur;
+    for (size_t k = 0; k < pairs.size(); ++k) cur[{pairs[k].type, (long)pairs[k].a, (long)pairs[k].b}] = active[k];
+    for (auto& kv : cur) { auto it = prev.find(kv.first); if (it == prev.end()) { if (kv.second) { ++flips; ++fb; fee += std::get<0>(kv.first); } } else if (it->second != kv.second) { ++flips; ++fa; fee += std::get<0>(kv.first); } }
+    for (auto& kv : prev) if (kv.second && !cur.count(kv.first)) { ++flips; ++fc; fee += std::get<0>(kv.first); }
+    total += contacts; ++steps;
+    if (steps % 100 == 0) { std::fprintf(stderr, "chatter: %.1f flips/step (toggle %.1f, enter %.1f, leave %.1f; edge-edge %.1f), %.1f contacts/step\n", flips / 100.0, fa / 100.0, fb / 100.0, fc / 100.0, fee / 100.0, total / 100.0); flips = total = fa = fb = fc = fee = 0; }
+    prev.swap(cur);
+  }
   return contacts;
 }
 

@@ -30,8 +30,8 @@ Vec2 resolveHold(const TextileOutline& t, const HoldPoint& h) {
 }  // namespace
 
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
-  if (spec.model != "particle_kes")
-    throw std::invalid_argument("unknown cloth model '" + spec.model + "' (available: particle_kes)");
+  if (spec.model != "particle_kes" && spec.model != "choi_ko")
+    throw std::invalid_argument("unknown cloth model '" + spec.model + "' (available: particle_kes, choi_ko)");
   if (spec.hold.empty() && spec.pinned_regions.empty())
     throw std::invalid_argument("scene holds nothing: give at least one hold point or pinned region");
   if (!spec.hold_position.allFinite()) throw std::invalid_argument("hold position is not finite");
@@ -52,7 +52,11 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   scene.grid = ParticleGrid::rasterize(spec.textile, spec.spacing, &error);
   if (scene.grid.empty()) throw std::invalid_argument("rasterisation failed: " + error);
   ParticleTopology topology = ParticleTopology::fromGrid(scene.grid);
-  auto model = std::make_unique<ParticleClothModel>(topology, spec.material, spec.model_options);
+  std::unique_ptr<ClothModel> model;
+  if (spec.model == "choi_ko")
+    model = std::make_unique<ChoiKoClothModel>(topology, spec.material, spec.choi_ko_options);
+  else
+    model = std::make_unique<ParticleClothModel>(topology, spec.material, spec.model_options);
 
   const Index n = scene.grid.numActive();
   // Shift so that the first held point (or the first region's centre) sits at hold_position.
@@ -289,6 +293,30 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
         if (!(s.model_options.settle_damping >= 0))
           throw std::invalid_argument("scene: 'model.settle_damping_per_s' must be >= 0");
       }
+      // The same switches for the Choi-Ko model, plus its own keys (docs/choi_ko.md).
+      ChoiKoOptions& ck = s.choi_ko_options;
+      ck.gravity = s.model_options.gravity;
+      ck.drag = s.model_options.drag;
+      ck.shear = s.model_options.shear;
+      ck.bending = s.model_options.bending;
+      ck.settle_damping = m["settle_damping_per_s"] ? s.model_options.settle_damping : ck.settle_damping;
+      if (m["bending_version"]) {
+        const std::string b = getString(m["bending_version"], "model.bending_version");
+        if (b == "beam") ck.bending_version = ChoiKoBending::kBeam;
+        else if (b == "plate") ck.bending_version = ChoiKoBending::kPlate;
+        else throw std::invalid_argument("scene: 'model.bending_version' must be beam or plate");
+      }
+      if (m["bending_jacobian"]) {
+        const std::string j = getString(m["bending_jacobian"], "model.bending_jacobian");
+        if (j == "secant") ck.bending_jacobian = choi_ko::BendingJacobian::kSecant;
+        else if (j == "drop_negative") ck.bending_jacobian = choi_ko::BendingJacobian::kDropNegative;
+        else if (j == "exact") ck.bending_jacobian = choi_ko::BendingJacobian::kExact;
+        else throw std::invalid_argument("scene: 'model.bending_jacobian' must be secant, drop_negative or exact");
+      }
+      ck.buckling_onset = positive(m, "buckling_onset", ck.buckling_onset, "model.");
+      if (!(ck.buckling_onset < 1)) throw std::invalid_argument("scene: 'model.buckling_onset' must be < 1");
+      ck.tensile_stiffness = positive(m, "tensile_stiffness_N_m", ck.tensile_stiffness, "model.");
+      ck.reference_strain = positive(m, "reference_strain", ck.reference_strain, "model.");
     }
     if (const YAML::Node m = root["simulation"]) {
       SimulationSettings& t = s.settings;

@@ -136,9 +136,8 @@ int main(int argc, char** argv) {
   }
   if (!r.diverged) {
     std::string err;
-    const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
-    if (pm && !writeRestShapePicture(out_dir + "/rest_shape.png", pm->topology(), sim.positions(), {scene.hold_particle},
-                                     400, &err))
+    if (!writeRestShapePicture(out_dir + "/rest_shape.png", ParticleTopology::fromGrid(scene.grid), sim.positions(),
+                               {scene.hold_particle}, 400, &err))
       std::cerr << "drape_sim: " << err << "\n";
   }
   std::cout << "outputs in " << out_dir << "/ (result.yaml, rest_positions.csv, rest_shape.png, state.txt)\n";

@@ -195,8 +195,22 @@ int main(int argc, char** argv) {
   const Vec2 hold_xy = scene.grid.activePosition(scene.hold_particle);
   truth << "hold_xy: [" << hold_xy.x() << ", " << hold_xy.y() << "]\n"
         << "spacing_m: " << scene.spec.spacing << "\n"
-        << "camera_frame: camera_optical\ngripper_frame: gripper\nworld_frame: world\n"
-        << "views:\n";
+        << "camera_frame: camera_optical\ngripper_frame: gripper\nworld_frame: world\n";
+  // The textile's named points (textile frame) and its bounding-box centre (the mirror axes of a
+  // symmetric textile), so tests can relabel poses of a mirror-equivalent hold point.
+  {
+    const std::vector<Vec2> full = fullOutline(scene.spec.textile);
+    Vec2 lo = full.front(), hi = full.front();
+    for (const Vec2& v : full) {
+      lo = lo.cwiseMin(v);
+      hi = hi.cwiseMax(v);
+    }
+    truth << "bounding_box_centre: [" << 0.5 * (lo.x() + hi.x()) << ", " << 0.5 * (lo.y() + hi.y()) << "]\n"
+          << "named_points_textile:\n";
+    for (const auto& np : scene.spec.textile.named_points)
+      truth << "  " << np.name << ": [" << np.position.x() << ", " << np.position.y() << "]\n";
+  }
+  truth << "views:\n";
   int seq = 0;
   for (size_t v = 0; v < yaws.size(); ++v) {
     const Real psi = yaws[v] * M_PI / 180.0;

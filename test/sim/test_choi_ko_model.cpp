@@ -1067,6 +1067,7 @@ TEST(ChoiKoModel, AnchoredModelAddsLinearSprings) {
 // ---- stability under compression --------------------------------------------------------------------
 
 TEST(ChoiKoStability, StableWithoutDampingAtTenAndTwentyMilliseconds) {
+  ThreadScope threads(1);  // one thread: fast on a loaded machine; results do not depend on it
   // The requirement: Choi-Ko stays stable at dt >= 10 ms without added damping (settle
   // damping 0; the physical air drag stays on), in both compression scenes. Measured margins
   // (docs/choi_ko.md): at d = 2 cm both scenes are stable up to 50 ms.
@@ -1092,6 +1093,7 @@ TEST(ChoiKoStability, StableWithoutDampingAtTenAndTwentyMilliseconds) {
 }
 
 TEST(ChoiKoStability, StableAtTenMillisecondsAtOneCentimetreResolution) {
+  ThreadScope threads(1);  // one thread: fast on a loaded machine; results do not depend on it
   for (CompressionScene s : {CompressionScene::kPushedEdges, CompressionScene::kLoweredOntoTable}) {
     CompressionSceneSpec scene;
     scene.scene = s;
@@ -1104,6 +1106,7 @@ TEST(ChoiKoStability, StableAtTenMillisecondsAtOneCentimetreResolution) {
 }
 
 TEST(ChoiKoStability, ParticleModelWithExactJacobianFailsAtTenMilliseconds) {
+  ThreadScope threads(1);  // one thread: fast on a loaded machine; results do not depend on it
   // Observed (docs/choi_ko.md): the particle model with its exact (indefinite) Jacobian breaks down in
   // the first steps of both scenes at 10 ms (CG meets negative curvature), without and with damping.
   for (CompressionScene s : {CompressionScene::kPushedEdges, CompressionScene::kLoweredOntoTable}) {
@@ -1119,6 +1122,7 @@ TEST(ChoiKoStability, ParticleModelWithExactJacobianFailsAtTenMilliseconds) {
 }
 
 TEST(ChoiKoStability, ScanAndCsv) {
+  ThreadScope threads(1);  // one thread: fast on a loaded machine; results do not depend on it
   CompressionSceneSpec scene;
   scene.hold_time = 0.1;
   scene.push_time = 0.2;

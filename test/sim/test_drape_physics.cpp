@@ -839,6 +839,26 @@ obstacles:
   EXPECT_TRUE(scene.x0.segment<3>(3 * scene.hold_particle).isApprox(Vec3(0.5, 0.0, 1.2)));
 }
 
+TEST(DrapeSceneYaml, ChoiKoModelIsSelectablePerScene) {
+  const DrapeSceneSpec s = parseDrapeSceneYaml(R"(
+textile: square
+spacing_m: 0.05
+model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, tensile_stiffness_N_m: 400,
+        settle_damping_per_s: 0}
+)");
+  EXPECT_EQ(s.model, "choi_ko");
+  EXPECT_EQ(s.choi_ko_options.bending_version, ChoiKoBending::kPlate);
+  EXPECT_EQ(s.choi_ko_options.bending_jacobian, choi_ko::BendingJacobian::kDropNegative);
+  EXPECT_DOUBLE_EQ(s.choi_ko_options.tensile_stiffness, 400.0);
+  const DrapeScene scene = buildDrapeScene(s);
+  EXPECT_EQ(scene.model->name(), "choi_ko");
+  EXPECT_EQ(scene.model->numNodes(), 7 * 7);
+  EXPECT_THROW(parseDrapeSceneYaml("model: {bending_version: shell}"), std::invalid_argument);
+  DrapeSceneSpec bad = s;
+  bad.model = "yarn_level";
+  EXPECT_THROW(buildDrapeScene(bad), std::invalid_argument);
+}
+
 // Expects std::invalid_argument whose message contains every string in `needles`.
 void expectRejected(const std::function<void()>& f, const std::vector<std::string>& needles, const std::string& what) {
   try {

@@ -78,6 +78,11 @@ RestShapeSample sampleRestShape(const ParticleGrid& grid, const VecX& positions,
 /// The shape placed in H: p_H = R_z(rotation_deg) (x - x_hold) for every particle.
 VecX placeInHoldFrame(const VecX& positions, Index held_particle, double rotation_deg);
 
+/// The shape mirrored across the vertical plane through the held particle whose normal is the view
+/// direction d(view_deg): the same (orthographic) silhouette at view_deg, the other chirality; particle
+/// labels are kept. Throws std::invalid_argument as placeInHoldFrame().
+VecX reflectAcrossView(const VecX& positions, Index held_particle, double view_deg);
+
 /// Poses of the named points of `textile` (and outline vertices, per options) on the rest shape
 /// `positions` (grid = the textile rasterised at the simulation's spacing), placed with
 /// placeInHoldFrame(rotation_deg); camera-frame copies via `geometry`. Throws std::invalid_argument for

@@ -1,7 +1,7 @@
 // Depth segmentation from an (unorganised) point cloud, e.g. a sensor_msgs/PointCloud2 converted by the
-// node: pcl::CropBox below the gripper and pcl::EuclideanClusterExtraction, keeping the cluster(s) that
-// touch the hold point, projected into the colour image as a mask that gates the colour segmentation
-// (segmentation.h). PCL stays inside the .cpp. See docs/recognition.md.
+// node: pcl::CropBox below the gripper, voxel centroids, pcl::EuclideanClusterExtraction, keeping the
+// cluster(s) that touch the hold point, projected into the colour image as a mask that gates the colour
+// segmentation (segmentation.h). PCL stays inside the .cpp. See docs/recognition.md.
 #pragma once
 
 #include <vector>

@@ -69,6 +69,9 @@ struct DepthSegmentationOptions {
   int min_cluster_points = 50;
   /// Point clouds: each kept point marks its pixel; the mark is dilated by this radius [px] (0 = off).
   int splat_radius_px = 1;
+  /// Point clouds: points are binned into voxels of this size [m] and the voxel centroids clustered
+  /// (0 = a quarter of cluster_tolerance_m, at least 5 mm), so the cost does not grow with resolution.
+  double voxel_size_m = 0.0;
 };
 
 struct SegmentationOptions {

@@ -53,17 +53,27 @@ struct RefinementOptions {
   bool camera_projection = true;
   /// Rank the refined classes by their refined score (ahead of the unrefined ones).
   bool rerank = true;
-  /// With depth: for every member of the winning class within depth_score_slack of its best refined
-  /// score, the azimuth within +-depth_yaw_range_deg of its silhouette optimum (in depth_yaw_step_deg
-  /// steps, then step_deg) whose silhouette score stays within depth_score_slack of that optimum and
-  /// whose rendered depth fits the measured depth best (median |predicted - measured| over the mask);
-  /// the member with the best fit wins. This also tells mirror-equivalent members apart (front/back).
+  /// With depth: every member of the winning class within depth_member_slack of its best refined
+  /// score, as stored and mirrored front-to-back (consider_reflections), at azimuths within
+  /// +-depth_yaw_range_deg of its silhouette optimum (depth_yaw_step_deg steps, then step_deg) whose
+  /// silhouette score stays within depth_score_slack of that optimum, is rendered into the depth camera;
+  /// the lowest cost (1 - IoU) + depth_weight_per_m * depth misfit (see depth_truncation_m) wins: its
+  /// member, azimuth and chirality are the result (the class stays the silhouette's).
   bool use_depth = true;
-  double depth_score_slack = 0.03;
+  double depth_member_slack = 0.08;
+  double depth_score_slack = 0.05;
+  double depth_weight_per_m = 50.0;  ///< 1 cm of depth misfit weighs like 0.5 IoU
   double depth_yaw_range_deg = 30.0;
   double depth_yaw_step_deg = 2.0;
+  /// With depth, also try every such member mirrored front-to-back (reflectAcrossView(): the same
+  /// silhouette, the other chirality; a towel grasped while lying face down hangs as the mirror image of
+  /// the face-up simulation).
+  bool consider_reflections = true;
   /// Fewer overlapping depth pixels than this: no depth decision.
   int depth_min_pixels = 100;
+  /// The depth fit is the mean of min(|predicted - measured|, depth_truncation_m) over the pixels of the
+  /// segmented mask where both exist (robust to a few wrong pixels, yet sensitive to a wrong layer).
+  double depth_truncation_m = 0.10;
 };
 
 struct RecognizerOptions {
@@ -122,7 +132,11 @@ struct HoldCandidate {
   double coarse_score = 0;              ///< coarse IoU (db::queryDrape)
   double score = 0;                     ///< refined IoU if refined, else the coarse one
   bool refined = false;
-  double depth_residual_m = -1;         ///< median |predicted - measured| depth, -1 = not computed
+  double depth_residual_m = -1;         ///< truncated mean |predicted - measured| depth [m], -1 = not computed
+  /// The stored shape mirrored across the vertical plane through the hold axis perpendicular to
+  /// d(reflection_view_deg) (stored-shape frame) fits better (depth decided).
+  bool reflected = false;
+  double reflection_view_deg = 0;
 };
 
 struct RecognitionResult {
@@ -140,12 +154,15 @@ struct RecognitionResult {
   double score = 0;                     ///< IoU of the winner (refined if refined)
   double confidence = 0;                ///< margin: score minus the runner-up class's score
   double coarse_margin = 0;             ///< the coarse matcher's margin
-  /// The hold frame cannot tell front from back: a single silhouette without depth, and the class has
-  /// mirror (not half-turn) equivalent members; the poses may be mirrored front-to-back (see docs).
+  /// One view direction and no depth decision: the shape mirrored front-to-back (across the vertical
+  /// plane perpendicular to the view) explains the silhouette equally well, so each pose's depth along
+  /// the viewing direction may be mirrored through the hold point (docs/recognition.md).
   bool front_back_ambiguous = false;
   bool depth_used = false;              ///< depth took part in segmentation
-  bool depth_decided = false;           ///< depth chose among mirror-equivalent members
+  bool depth_decided = false;           ///< depth chose the azimuth, member and chirality
   double depth_residual_m = -1;
+  bool reflected = false;               ///< see HoldCandidate::reflected
+  double reflection_view_deg = 0;
   std::vector<HoldCandidate> top_k;     ///< best first (top_k[0] is the winner)
   std::vector<GraspPose> grasp_poses;   ///< hold frame of the first image (+ camera frame copies)
 
@@ -175,8 +192,9 @@ class TextileRecognizer {
   /// Reloads the index (after the database changed). On failure the old index stays and the error is
   /// thrown (kDatabase, kUnknownTextile).
   void reload();
-  /// Reloads if the database's counts (textiles, finished simulations, views) changed since the last
-  /// load; returns whether it reloaded.
+  /// Reloads if the database's content changed since the last load (fingerprint: textiles, finished
+  /// simulations with their ids and finish times, views; a resimulation that replaces every row is
+  /// detected too); returns whether it reloaded.
   bool reloadIfChanged();
   /// Restricts recognition to one textile (0 = all) and reloads; kUnknownTextile for an unknown id
   /// (the previous filter stays).
@@ -204,14 +222,14 @@ class TextileRecognizer {
 
  private:
   std::shared_ptr<const State> state() const;
-  std::shared_ptr<const StoredShape> shape(std::int64_t simulation_id) const;
+  /// The stored rest shape of a simulation (cached per loaded state: ids can be reused after a
+  /// resimulation); `expected_hold` guards against a database that changed under a running recognition.
+  std::shared_ptr<const StoredShape> shape(const State& state, std::int64_t simulation_id, const Vec2& expected_hold) const;
 
   std::shared_ptr<const db::HangingDrapeDatabase> db_;
   RecognizerOptions options_;
   mutable std::mutex mutex_;            // state_ and the filter
   std::shared_ptr<const State> state_;
-  mutable std::mutex cache_mutex_;
-  mutable std::map<std::int64_t, std::shared_ptr<const StoredShape>> cache_;
 };
 
 }  // namespace recognition

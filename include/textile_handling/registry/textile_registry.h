@@ -49,7 +49,7 @@ struct RegistryOptions {
   /// Upper bound on the hold points of one build (a guard against absurd lattice spacings).
   int max_hold_points = 2000;
   /// Models a request may name.
-  std::vector<std::string> models = {"particle_kes"};
+  std::vector<std::string> models = {"particle_kes", "choi_ko"};
 };
 
 struct BuildProgressEvent {

@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "textile_handling/sim/choi_ko_model.h"
 #include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/material.h"
@@ -43,8 +44,9 @@ struct DrapeSceneSpec {
   std::vector<Eigen::Matrix<Real, 4, 1>> pinned_regions;
   std::vector<Real> lift_times;                ///< waypoints of the holder offset [s]
   std::vector<Vec3> lift_offsets;              ///< [m]
-  std::string model = "particle_kes";
-  ParticleModelOptions model_options;
+  std::string model = "particle_kes";           ///< particle_kes | choi_ko
+  ParticleModelOptions model_options;           ///< particle_kes
+  ChoiKoOptions choi_ko_options;                ///< choi_ko (docs/choi_ko.md)
   SimulationSettings settings;
   /// Self-collision after every step (scene key collision.self: off | v1 | v2 | v3). Off by default:
   /// a scene gets no more model than it needs; the demo scene and the database builder turn v3 on.
