@@ -17,6 +17,6 @@ rm -f "$DATA/towel_test.sqlite"
 "$BIN/drape_db" build --db "$DATA/towel_test.sqlite" --textile towel --grid 6x6 --spacing 0.02 --threads 2 --quiet
 for n in a b; do
   "$BIN/record_drape_bag" "$REPO/config/scenes/replay_$n.yaml" --out "$DATA/towel_replay_$n.bag" \
-    --yaw 25,155 --frames-per-view 2 --period 1.0 --width 320 --compress --seed 7
+    --yaw 25,155 --frames-per-view 2 --period 1.0 --width 320 --compress --seed 7 --depth
 done
 ls -la "$DATA"

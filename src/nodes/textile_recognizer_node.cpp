@@ -65,6 +65,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   tf_timeout_s_ = finiteParam(pnh, "tf_timeout_s", tf_timeout_s_, 0.0);
   pnh.param("use_depth", use_depth_, use_depth_);
   depth_max_age_s_ = finiteParam(pnh, "depth_max_age_s", depth_max_age_s_, 0.0);
+  depth_wait_s_ = finiteParam(pnh, "depth_wait_s", depth_wait_s_, 0.0);
 
   recognition::RecognizerOptions o;
   int top_k = 5;
@@ -131,8 +132,11 @@ TextileRecognizerNode::~TextileRecognizerNode() {
 }
 
 void TextileRecognizerNode::depthCallback(const sensor_msgs::ImageConstPtr& depth) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  last_depth_ = depth;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_depth_ = depth;
+  }
+  cv_.notify_all();  // the worker may be waiting for the depth image of its frame
 }
 
 void TextileRecognizerNode::databaseChanged(const DatabaseChanged::ConstPtr&) { reload_requested_ = true; }
@@ -166,6 +170,19 @@ void TextileRecognizerNode::workerLoop() {
       if (stop_) return;
       f = pending_;
       has_frame_ = false;
+      // The depth image of this frame may arrive just after the colour image: wait a little for it
+      // (on the worker thread; callbacks never wait).
+      if (use_depth_ && !f.depth) {
+        const auto matches = [&] {
+          return last_depth_ &&
+                 std::fabs((last_depth_->header.stamp - f.image->header.stamp).toSec()) <= depth_max_age_s_;
+        };
+        cv_.wait_for(lock, std::chrono::duration<double>(depth_wait_s_), [&] { return stop_ || matches(); });
+        if (stop_) return;
+        if (matches()) f.depth = last_depth_;
+        else ROS_WARN_THROTTLE_NAMED(5.0, "textile_recognizer", "no depth image for the frame at %.3f s; colour only",
+                                     f.image->header.stamp.toSec());
+      }
     }
     if (reload_requested_.exchange(false)) {
       try {

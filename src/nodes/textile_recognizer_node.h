@@ -60,6 +60,7 @@ class TextileRecognizerNode {
   std::string grasp_frame_prefix_ = "grasp/";
   double tf_timeout_s_ = 0.2;
   double depth_max_age_s_ = 0.05;
+  double depth_wait_s_ = 0.5;   // wall time the worker waits for a frame's depth image
   bool use_depth_ = false;
   // Multi-image fusion (thesis: two images): earlier observations of the same hold, kept while the
   // gripper turns; a new frame is fused with up to fusion_views - 1 of them whose view azimuth differs by
