@@ -125,6 +125,7 @@ Run simulate(const DrapeSceneSpec& spec) {
 int main(int argc, char** argv) {
   std::string out_dir = "out/bench";
   bool quick = false, stability = true;
+  std::string only;  // run only the configurations whose label contains this (and their references)
   Real max_wall = 300;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -133,8 +134,9 @@ int main(int argc, char** argv) {
     else if (a == "--threads" && i + 1 < argc) omp_set_num_threads(std::atoi(argv[++i]));
     else if (a == "--max-wall" && i + 1 < argc) max_wall = std::atof(argv[++i]);
     else if (a == "--no-stability") stability = false;
+    else if (a == "--only" && i + 1 < argc) only = argv[++i];
     else {
-      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S] [--no-stability]\n";
+      std::cerr << "usage: drape_bench [--out DIR] [--quick] [--threads N] [--max-wall S] [--no-stability] [--only TEXT]\n";
       return 2;
     }
   }
@@ -188,6 +190,16 @@ int main(int argc, char** argv) {
       for (const auto& key : std::vector<std::pair<std::string, bool>>{
                {"particle_kes", false}, {"particle_kes", true}, {"choi_ko", false}}) {
         const bool collide = key.second;
+        // With --only, skip references no selected configuration needs (choi_ko rows need both models').
+        bool needed = only.empty();
+        for (const auto& c : configs) {
+          if (needed || c.label.find(only) == std::string::npos) continue;
+          DrapeSceneSpec probe = towelSpec(d, hold);
+          c.apply(probe);
+          needed = (probe.model == key.first && probe.self_collision == collide) ||
+                   (probe.model != "particle_kes" && key.first == "particle_kes" && !collide);
+        }
+        if (!needed) continue;
         DrapeSceneSpec ref_spec = towelSpec(d, hold);
         ref_spec.model = key.first;
         ref_spec.self_collision = collide;
@@ -207,6 +219,7 @@ int main(int argc, char** argv) {
         std::fflush(stdout);
       }
       for (const auto& c : configs) {
+        if (!only.empty() && c.label.find(only) == std::string::npos) continue;
         DrapeSceneSpec spec = towelSpec(d, hold);
         c.apply(spec);
         spec.settings.max_wall_time = max_wall;

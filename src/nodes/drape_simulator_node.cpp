@@ -214,6 +214,7 @@ bool DrapeSimulatorNode::registerTextile(RegisterTextile::Request& req, Register
   r.material_name = req.material;
   r.material_yaml = req.material_yaml;
   r.hold_point_spacing = req.hold_point_spacing_m;
+  r.model = req.model;
   try {
     const registry::QueuedBuild q = registry_->registerTextile(r);
     res.success = true;

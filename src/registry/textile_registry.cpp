@@ -95,6 +95,15 @@ int TextileRegistry::planHoldPoints(const db::DrapeBuildConfig& config) {
   return n;
 }
 
+std::string TextileRegistry::checkedModel(const std::string& model) const {
+  std::string known;
+  for (const auto& m : options_.models) {
+    if (m == model) return model;
+    known += (known.empty() ? "" : ", ") + m;
+  }
+  throw InvalidInputError("unknown model '" + model + "' (available: " + known + ")");
+}
+
 QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   checkName(r.name, "name");
   checkSpacing(r.hold_point_spacing, "hold_point_spacing_m");
@@ -116,6 +125,7 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   job.config.textile = outline;
   job.config.material = material;
   if (r.hold_point_spacing > 0) job.config.lattice_spacing = r.hold_point_spacing;
+  if (!r.model.empty()) job.config.model = checkedModel(r.model);
   const int planned = planHoldPoints(job.config);  // throws before anything is stored
   {
     std::lock_guard<std::mutex> lock(db_mutex_);
@@ -144,12 +154,7 @@ QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
   std::string error;
   if (!job.config.material.validate(&error)) throw InvalidInputError("material: " + error);
   if (r.spacing > 0) job.config.spacing = r.spacing;
-  if (!r.model.empty()) {
-    bool known = false;
-    for (const auto& m : options_.models) known = known || m == r.model;
-    if (!known) throw InvalidInputError("unknown model '" + r.model + "'");
-    job.config.model = r.model;
-  }
+  if (!r.model.empty()) job.config.model = checkedModel(r.model);
   job.replace = true;
   const int planned = planHoldPoints(job.config);
   QueuedBuild q = enqueue(std::move(job));

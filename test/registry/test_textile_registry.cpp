@@ -137,6 +137,9 @@ TEST(TextileRegistry, MalformedRequestsAreRejectedAndStoreNothing) {
   r.hold_point_spacing = -0.1;
   rejected(r, "hold_point_spacing", "negative spacing");
   r = napkin();
+  r.model = "yarn_level";
+  rejected(r, "yarn_level", "unknown model");
+  r = napkin();
   r.hold_point_spacing = 0.001;  // 301 x 301 lattice
   rejected(r, "limit", "absurd lattice");
   EXPECT_TRUE(reg.list().empty());
@@ -171,6 +174,19 @@ TEST(TextileRegistry, ResimulateReplacesTheEntriesWithTheNewSettings) {
   // The held particle hangs at the top.
   for (Index k = 0; k < after.positions.size() / 3; ++k)
     EXPECT_LE(after.positions[3 * k + 2], after.positions[3 * after.held_particle + 2] + 1e-9);
+}
+
+TEST(TextileRegistry, ChoiKoModelIsSelectableAtRegistration) {
+  TextileRegistry reg(tempDb("choiko"), smallOptions());
+  TextileRegistration r = napkin("napkin_ck");
+  r.model = "choi_ko";
+  const QueuedBuild q = reg.registerTextile(r);
+  ASSERT_TRUE(reg.waitIdle(300.0));
+  db::HangingDrapeDatabase check(reg.databasePath());
+  const auto sims = check.simulations(q.textile_id);
+  ASSERT_FALSE(sims.empty());
+  for (const auto& s : sims) EXPECT_EQ(s.model, "choi_ko");
+  EXPECT_EQ(check.counts(q.textile_id).done + check.counts(q.textile_id).failed, 9);
 }
 
 TEST(TextileRegistry, UnknownIdsAndBadResimulationsAreErrors) {

@@ -30,6 +30,7 @@ struct TextileRegistration {
   std::string material_name;              ///< a name known to the registry (empty = default material)
   std::string material_yaml;              ///< or a whole material as YAML text (wins over the name)
   Real hold_point_spacing = 0;            ///< lattice spacing of the hold points [m]; 0 = default
+  std::string model;                      ///< cloth model (RegistryOptions::models); empty = default
 };
 
 /// A rebuild of a stored textile's entries; empty / zero fields keep the registry's defaults.
@@ -133,6 +134,7 @@ class TextileRegistry {
   };
 
   QueuedBuild enqueue(Job job);
+  std::string checkedModel(const std::string& model) const;  // throws InvalidInputError
   int planHoldPoints(const db::DrapeBuildConfig& config);
   void workerLoop();
   void runJob(Job& job, int queued_behind);
