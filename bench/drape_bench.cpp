@@ -67,6 +67,7 @@ DrapeSceneSpec towelSpec(Real spacing, const std::string& hold) {
   s.hold_position = Vec3(0, 0, 1.0);
   s.model_options.settle_damping = 4.0;
   s.model_options.jacobian = JacobianMode::kDefiniteFix;
+  s.choi_ko_options.settle_damping = 4.0;  // same settling for the Choi-Ko rows (a rest-shape comparison)
   s.settings.max_time = 8.0;
   s.settings.dt = 1e-3;
   s.settings.dt_max = 0.02;

@@ -7,10 +7,6 @@
 #include <limits>
 #include <stdexcept>
 #include <unordered_map>
-#include <map>
-#include <tuple>
-#include <cstdio>
-#include <cstdlib>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -109,7 +105,6 @@ ClothTriangles ClothTriangles::fromTopology(const ParticleTopology& topo) {
     t.candidate_list.insert(t.candidate_list.end(), scratch.begin(), scratch.end());
     t.candidate_start[static_cast<size_t>(p) + 1] = static_cast<Index>(t.candidate_list.size());
   }
-  if (topo.area.size() == static_cast<size_t>(n)) t.vertex_mass = topo.area;
   return t;
 }
 
@@ -149,11 +144,6 @@ void SelfCollisionStats::add(const SelfCollisionStats& o) {
   detect_ms += o.detect_ms;
   resolve_ms += o.resolve_ms;
   point_test_rejections += o.point_test_rejections;
-  proximity_pairs += o.proximity_pairs;
-  proximity_contacts += o.proximity_contacts;
-  proximity_rebuilds += o.proximity_rebuilds;
-  proximity_edge_projections += o.proximity_edge_projections;
-  proximity_ms += o.proximity_ms;
 }
 
 // ---- self-collision pass --------------------------------------------------------------------------
@@ -165,14 +155,8 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
     throw std::invalid_argument("SelfCollisionPass: pinned mask size differs from the particle count");
   if (!(options_.d_min >= 0) || options_.max_passes < 1 || !(options_.cell_size_factor > 0) ||
       !(options_.barycentric_tolerance >= 0) || !(options_.restitution >= 0 && options_.restitution <= 1) ||
-      !(options_.tangential_damping >= 0 && options_.tangential_damping <= 1) ||
-      !(options_.thickness_factor > 0 && options_.thickness_factor < 0.35) ||
-      !(options_.proximity_separation >= 0 && options_.proximity_separation <= 1) ||
-      !(options_.proximity_friction >= 0 && std::isfinite(options_.proximity_friction)) ||
-      options_.proximity_iterations < 1)
+      !(options_.tangential_damping >= 0 && options_.tangential_damping <= 1))
     throw std::invalid_argument("SelfCollisionPass: invalid options");
-  if (!tris_.vertex_mass.empty() && static_cast<Index>(tris_.vertex_mass.size()) != tris_.num_vertices)
-    throw std::invalid_argument("SelfCollisionPass: vertex_mass size differs from the particle count");
   // Each edge is owned by the first triangle that contains it; edges in no triangle are orphans.
   std::vector<char> owned(tris_.edges.size(), 0);
   owned_start_.assign(tris_.triangles.size() + 1, 0);
@@ -199,33 +183,6 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
   std::vector<Index> fill(vertex_edge_start_.begin(), vertex_edge_start_.end() - 1);
   for (Index e = 0; e < tris_.numEdges(); ++e)
     for (Index p : tris_.edges[static_cast<size_t>(e)]) vertex_edge_list_[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = e;
-  // Each vertex is owned by the first triangle that contains it (proximity detection).
-  {
-    std::vector<char> vowned(nv, 0);
-    owned_vertex_start_.assign(tris_.triangles.size() + 1, 0);
-    for (size_t t = 0; t < tris_.triangles.size(); ++t) {
-      for (Index p : tris_.triangles[t]) {
-        if (vowned[static_cast<size_t>(p)]) continue;
-        vowned[static_cast<size_t>(p)] = 1;
-        owned_vertex_list_.push_back(p);
-      }
-      owned_vertex_start_[t + 1] = static_cast<Index>(owned_vertex_list_.size());
-    }
-  }
-  // Relative inverse masses (mean mass 1), 0 for pinned particles.
-  {
-    Real mean = 0;
-    for (Real m : tris_.vertex_mass) mean += m;
-    mean = tris_.vertex_mass.empty() ? 1 : mean / static_cast<Real>(tris_.vertex_mass.size());
-    inv_mass_.assign(nv, 1.0);
-    for (size_t p = 0; p < nv; ++p) {
-      if (!tris_.vertex_mass.empty()) {
-        const Real m = tris_.vertex_mass[p] / mean;
-        inv_mass_[p] = m > 0 && std::isfinite(m) ? 1.0 / m : 1.0;
-      }
-      if (pinned_[p]) inv_mass_[p] = 0;
-    }
-  }
   tri_mark_.assign(tris_.triangles.size(), 0);
   work_mark_.assign(tris_.triangles.size(), 0);
   edge_mark_.assign(tris_.edges.size(), 0);
@@ -524,355 +481,12 @@ Real crossingMinBarycentric(Index q, const std::array<Index, 3>& c, const VecX& 
 
 }  // namespace
 
-// ---- proximity stage (persistent contact) ---------------------------------------------------------
-//
-// Bridson, Fedkiw & Anderson (2002), section 7.1 ("repulsions"), adapted to a post-step pass: the
-// pass receives the accepted step x_old -> x (x = x_old + h v for the implicit integrators) and
-// corrects the step's displacement and the end velocity of close pairs, instead of the velocity
-// that an explicit position update would use. See docs/collision.md, "Persistent contact".
-
-namespace {
-
-// Closest points of the segments p1p2 and q1q2 (Ericson, Real-Time Collision Detection, 5.1.9):
-// parameters s (on p) and t (on q). Returns false for (nearly) parallel or degenerate segments.
-bool segmentClosestParams(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, Real* s, Real* t) {
-  const Vec3 d1 = p2 - p1, d2 = q2 - q1, r = p1 - q1;
-  const Real a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r);
-  if (!(a > 0) || !(e > 0)) return false;
-  const Real c = d1.dot(r), b = d1.dot(d2);
-  const Real den = a * e - b * b;
-  if (!(den > 1e-6 * a * e)) return false;  // parallel within ~0.06 degrees: vertex-triangle pairs cover it
-  Real ss = std::clamp((b * f - c * e) / den, 0.0, 1.0);
-  Real tt = (b * ss + f) / e;
-  if (tt < 0) {
-    tt = 0;
-    ss = std::clamp(-c / a, 0.0, 1.0);
-  } else if (tt > 1) {
-    tt = 1;
-    ss = std::clamp((b - c) / a, 0.0, 1.0);
-  }
-  *s = ss;
-  *t = tt;
-  return true;
-}
-
-}  // namespace
-
-void SelfCollisionPass::detectProximity(const VecX& x_old, const VecX& x, Real thickness,
-                                        std::vector<ProxPair>& pairs) const {
-  // Pairs closer than the search radius R = 2 T at x_old. The hash holds the swept triangle boxes
-  // inflated by R, so the query with triangle k's swept box finds every triangle within R of it.
-  const Real R = 2 * thickness;
-  const Index T = tris_.numTriangles();
-  // A vertex projecting slightly outside a triangle still counts (the neighbouring triangle of a
-  // fold's ridge may not see it either); weights are clamped to the triangle.
-  constexpr Real kBaryTol = 0.05;
-  // Edge-edge pairs only where the closest points are interior to both edges (elsewhere a
-  // vertex-triangle pair describes the contact).
-  constexpr Real kEdgeEnd = 1e-3;
-  std::vector<std::vector<ProxPair>> local(static_cast<size_t>(threadCount()));
-#pragma omp parallel if (T >= kParallelMin)
-  {
-    auto& out = local[static_cast<size_t>(threadId())];
-    geom::SpatialHash::Query query(hash_);
-    auto vertexTriangle = [&](Index p, Index t2) {
-      const auto& c = tris_.triangles[static_cast<size_t>(t2)];
-      if (c[0] == p || c[1] == p || c[2] == p) return;
-      const Vec3 xp = node3(x_old, p);
-      const geom::Aabb& bb = boxes_[static_cast<size_t>(t2)];
-      if ((xp.array() < bb.lo.array()).any() || (xp.array() > bb.hi.array()).any()) return;
-      const Vec3 a = node3(x_old, c[0]);
-      const Vec3 e0 = node3(x_old, c[1]) - a, e1 = node3(x_old, c[2]) - a;
-      Vec3 nrm = e0.cross(e1);
-      const Real len = nrm.norm();
-      if (!(len > 1e-9 * (e0.squaredNorm() + e1.squaredNorm()))) return;  // degenerate triangle
-      nrm /= len;
-      const Vec3 w = xp - a;
-      Real dist = nrm.dot(w);
-      if (!(std::abs(dist) < R) || dist == 0) return;
-      const Real d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = w.dot(e0), d21 = w.dot(e1);
-      const Real den = d00 * d11 - d01 * d01;
-      Real b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den, b0 = 1 - b1 - b2;
-      if (std::min({b0, b1, b2}) < -kBaryTol) return;
-      b0 = std::max(b0, 0.0);
-      b1 = std::max(b1, 0.0);
-      b2 = std::max(b2, 0.0);
-      const Real sum = b0 + b1 + b2;
-      if (dist < 0) {
-        nrm = -nrm;
-        dist = -dist;
-      }
-      ProxPair pp;
-      pp.type = 0;
-      pp.a = p;
-      pp.b = t2;
-      pp.idx[0] = p;
-      pp.w[0] = 1;
-      for (int k = 0; k < 3; ++k) pp.idx[k + 1] = c[static_cast<size_t>(k)];
-      pp.w[1] = -b0 / sum;
-      pp.w[2] = -b1 / sum;
-      pp.w[3] = -b2 / sum;
-      pp.n = nrm;
-      pp.gap = dist;
-      out.push_back(pp);
-    };
-    auto edgeEdge = [&](Index e1, Index e2) {
-      const auto& p = tris_.edges[static_cast<size_t>(e1)];
-      const auto& q = tris_.edges[static_cast<size_t>(e2)];
-      if (p[0] == q[0] || p[0] == q[1] || p[1] == q[0] || p[1] == q[1]) return;
-      const Vec3 p1 = node3(x_old, p[0]), p2 = node3(x_old, p[1]), q1 = node3(x_old, q[0]), q2 = node3(x_old, q[1]);
-      // Box test of the two edges at x_old, one inflated by R.
-      const Vec3 plo = p1.cwiseMin(p2).array() - R, phi = p1.cwiseMax(p2).array() + R;
-      const Vec3 qlo = q1.cwiseMin(q2), qhi = q1.cwiseMax(q2);
-      if ((plo.array() > qhi.array()).any() || (qlo.array() > phi.array()).any()) return;
-      Real s = 0, t = 0;
-      if (!segmentClosestParams(p1, p2, q1, q2, &s, &t)) return;
-      if (s < kEdgeEnd || s > 1 - kEdgeEnd || t < kEdgeEnd || t > 1 - kEdgeEnd) return;
-      Vec3 d = (p1 + s * (p2 - p1)) - (q1 + t * (q2 - q1));
-      const Real dist = d.norm();
-      if (!(dist < R) || !(dist > 0)) return;
-      ProxPair pp;
-      pp.type = 1;
-      pp.a = e1;
-      pp.b = e2;
-      pp.idx[0] = p[0];
-      pp.idx[1] = p[1];
-      pp.idx[2] = q[0];
-      pp.idx[3] = q[1];
-      pp.w[0] = 1 - s;
-      pp.w[1] = s;
-      pp.w[2] = -(1 - t);
-      pp.w[3] = -t;
-      pp.n = d / dist;
-      pp.gap = dist;
-      out.push_back(pp);
-    };
-#pragma omp for schedule(dynamic, 128)
-    for (Index k = 0; k < T; ++k) {
-      const Index vb = owned_vertex_start_[static_cast<size_t>(k)], ve = owned_vertex_start_[static_cast<size_t>(k) + 1];
-      const Index* own_e = ownedEdges(k);
-      const int ne = options_.proximity_edges ? numOwnedEdges(k) : 0;
-      if (vb == ve && ne == 0) continue;
-      geom::Aabb qb = boxes_[static_cast<size_t>(k)];
-      qb.inflate(-R);  // the triangle's own swept box
-      query.forEachOverlap(qb, [&](int t2) {
-        if (t2 == k) return;
-        for (Index j = vb; j < ve; ++j) vertexTriangle(owned_vertex_list_[static_cast<size_t>(j)], t2);
-        for (int i = 0; i < ne; ++i)
-          for (int j = 0; j < numOwnedEdges(t2); ++j)
-            if (own_e[i] < ownedEdges(t2)[j]) edgeEdge(own_e[i], ownedEdges(t2)[j]);
-      });
-    }
-  }
-  pairs.clear();
-  for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
-  std::sort(pairs.begin(), pairs.end());
-  (void)x;
-}
-
-long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Real thickness, const VecX& x_old,
-                                         const VecX& x_pred, VecX& x, VecX& v, SelfCollisionStats& st) {
-  const Real mu = options_.proximity_friction, sep = options_.proximity_separation;
-  const Real tol = 1e-6 * thickness;
-  const Index nv = tris_.num_vertices;
-  std::vector<char> active(pairs.size(), 0);
-  // Particles moved so far (the region whose grid edges are restored), epoch-free: a flag vector.
-  std::vector<char> in_region(static_cast<size_t>(nv), 0);
-  std::vector<Index> region;
-  auto touch = [&](Index p) {
-    if (!in_region[static_cast<size_t>(p)]) {
-      in_region[static_cast<size_t>(p)] = 1;
-      region.push_back(p);
-    }
-  };
-  auto weightSum = [&](const ProxPair& pp) {
-    Real W = 0;
-    for (int k = 0; k < 4; ++k) W += pp.w[k] * pp.w[k] * inv_mass_[static_cast<size_t>(pp.idx[k])];
-    return W;
-  };
-  auto apply = [&](const ProxPair& pp, Real W, const Vec3& corr, VecX& s, bool mark) {
-    for (int k = 0; k < 4; ++k) {
-      const Real im = inv_mass_[static_cast<size_t>(pp.idx[k])];
-      if (im > 0 && pp.w[k] != 0) {
-        node3(s, pp.idx[k]) += (pp.w[k] * im / W) * corr;
-        if (mark) touch(pp.idx[k]);
-      }
-    }
-  };
-  auto friction = [&](const ProxPair& pp, Real W, const Vec3& rel, Real dn, VecX& s, bool mark) {
-    if (!(mu > 0) || !(dn > 0)) return;
-    const Vec3 rt = rel - pp.n.dot(rel) * pp.n;
-    const Real lt = rt.norm();
-    if (!(lt > 0)) return;
-    apply(pp, W, -std::min(1.0, mu * dn / lt) * rt, s, mark);
-  };
-  std::vector<Index> edge_list;
-  std::vector<char> edge_seen;
-  if (options_.proximity_propagate) edge_seen.assign(static_cast<size_t>(tris_.num_grid_edges), 0);
-  for (int it = 0; it < options_.proximity_iterations; ++it) {
-    bool any = false;
-    for (size_t k = 0; k < pairs.size(); ++k) {
-      const ProxPair& pp = pairs[k];
-      Vec3 rel = Vec3::Zero();
-      for (int j = 0; j < 4; ++j) rel += pp.w[j] * (node3(x, pp.idx[j]) - node3(x_old, pp.idx[j]));
-      const Real delta = pp.n.dot(rel);
-      const Real target = pp.gap >= thickness ? thickness - pp.gap : sep * (thickness - pp.gap);
-      if (!(delta < target - tol)) continue;
-      const Real W = weightSum(pp);
-      if (!(W > 0)) continue;
-      apply(pp, W, (target - delta) * pp.n, x, true);
-      friction(pp, W, rel, target - delta, x, true);
-      active[k] = 1;
-      any = true;
-    }
-    if (!options_.proximity_propagate) {
-      if (!any) break;
-      continue;
-    }
-    // Restore the (stiff) grid edges around the moved particles to their lengths after the step, so
-    // that a correction moves the patch the integrator moved as one, instead of straining it.
-    edge_list.clear();
-    for (Index p : region)
-      for (Index k = vertex_edge_start_[static_cast<size_t>(p)]; k < vertex_edge_start_[static_cast<size_t>(p) + 1]; ++k) {
-        const Index e = vertex_edge_list_[static_cast<size_t>(k)];
-        if (e >= tris_.num_grid_edges || edge_seen[static_cast<size_t>(e)]) continue;
-        edge_seen[static_cast<size_t>(e)] = 1;
-        edge_list.push_back(e);
-      }
-    std::sort(edge_list.begin(), edge_list.end());
-    bool edge_change = false;
-    for (Index e : edge_list) {
-      edge_seen[static_cast<size_t>(e)] = 0;
-      const Index a = tris_.edges[static_cast<size_t>(e)][0], b = tris_.edges[static_cast<size_t>(e)][1];
-      const Real wa = inv_mass_[static_cast<size_t>(a)], wb = inv_mass_[static_cast<size_t>(b)];
-      if (!(wa + wb > 0)) continue;
-      static const int lmode = std::getenv("LMODE") ? std::atoi(std::getenv("LMODE")) : 0;
-      const Real L = lmode == 1 ? (node3(x_old, a) - node3(x_old, b)).norm() : (node3(x_pred, a) - node3(x_pred, b)).norm();
-      const Vec3 d = node3(x, a) - node3(x, b);
-      const Real len = d.norm();
-      if (!(len > 0)) continue;
-      const Real c = len - L;
-      if (!(std::abs(c) > tol)) continue;
-      const Vec3 corr = (c / ((wa + wb) * len)) * d;
-      if (wa > 0) {
-        node3(x, a) -= wa * corr;
-        touch(a);
-      }
-      if (wb > 0) {
-        node3(x, b) += wb * corr;
-        touch(b);
-      }
-      edge_change = true;
-      ++st.proximity_edge_projections;
-    }
-    if (!any && !edge_change) break;
-  }
-  // Velocities. For the implicit integrators x = x_old + h v exactly; then the end velocity follows
-  // the corrected displacement (v += (x - x_pred) / h), which keeps x and v consistent (the
-  // correction is an impulse). Otherwise (h unknown) an inelastic impulse on the relative normal
-  // velocity of every corrected pair.
-  Real h = -1;
-  {
-    Real dv = 0, vv = 0, worst = 0, big = 0;
-    for (Index p = 0; p < nv; ++p) {
-      if (pinned_[static_cast<size_t>(p)]) continue;
-      const Vec3 dp = node3(x_pred, p) - node3(x_old, p);
-      const Vec3 vp = node3(v, p);
-      dv += dp.dot(vp);
-      vv += vp.squaredNorm();
-      big = std::max(big, dp.norm());
-    }
-    if (vv > 0 && dv > 0) {
-      h = dv / vv;
-      for (Index p = 0; p < nv; ++p) {
-        if (pinned_[static_cast<size_t>(p)]) continue;
-        worst = std::max(worst, (Vec3(node3(x_pred, p) - node3(x_old, p)) - h * Vec3(node3(v, p))).norm());
-      }
-      if (!(worst <= 1e-6 * big + 1e-15)) h = -1;
-    }
-  }
-  static const int vmode = std::getenv("VMODE") ? std::atoi(std::getenv("VMODE")) : 0;
-  if (vmode == 1) {
-  } else if (vmode == 2) {
-    for (size_t k = 0; k < pairs.size(); ++k)
-      if (active[k])
-        for (int j = 0; j < 4; ++j) { const Index p = pairs[k].idx[j]; node3(v, p) = (Vec3(node3(x, p)) - Vec3(node3(x_old, p))) / h; }
-  } else if (h > 0 && vmode != 3) {
-    for (Index p : region) node3(v, p) += (Vec3(node3(x, p)) - Vec3(node3(x_pred, p))) / h;
-  } else {
-    for (int it = 0; it < options_.proximity_iterations; ++it) {
-      bool any = false;
-      for (size_t k = 0; k < pairs.size(); ++k) {
-        if (!active[k]) continue;
-        const ProxPair& pp = pairs[k];
-        Vec3 rel = Vec3::Zero();
-        for (int j = 0; j < 4; ++j) rel += pp.w[j] * node3(v, pp.idx[j]);
-        const Real un = pp.n.dot(rel);
-        if (!(un < 0)) continue;
-        const Real W = weightSum(pp);
-        apply(pp, W, -un * pp.n, v, false);
-        friction(pp, W, rel, -un, v, false);
-        any = true;
-      }
-      if (!any) break;
-    }
-  }
-  long contacts = 0;
-  for (char a : active) contacts += a;
-  if (std::getenv("CHATTER")) {
-    static std::map<std::tuple<int, long, long>, char> prev;
-    static long steps = 0, flips = 0, total = 0, fa = 0, fb = 0, fc = 0, fee = 0;
-    std::map<std::tuple<int, long, long>, char> cur;
-    for (size_t k = 0; k < pairs.size(); ++k) cur[{pairs[k].type, (long)pairs[k].a, (long)pairs[k].b}] = active[k];
-    for (auto& kv : cur) { auto it = prev.find(kv.first); if (it == prev.end()) { if (kv.second) { ++flips; ++fb; fee += std::get<0>(kv.first); } } else if (it->second != kv.second) { ++flips; ++fa; fee += std::get<0>(kv.first); } }
-    for (auto& kv : prev) if (kv.second && !cur.count(kv.first)) { ++flips; ++fc; fee += std::get<0>(kv.first); }
-    total += contacts; ++steps;
-    if (steps % 100 == 0) { std::fprintf(stderr, "chatter: %.1f flips/step (toggle %.1f, enter %.1f, leave %.1f; edge-edge %.1f), %.1f contacts/step\n", flips / 100.0, fa / 100.0, fb / 100.0, fc / 100.0, fee / 100.0, total / 100.0); flips = total = fa = fb = fc = fee = 0; }
-    prev.swap(cur);
-  }
-  return contacts;
-}
-
 long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisionStats& st) {
   const Index E = options_.include_diagonals ? tris_.numEdges() : tris_.num_grid_edges;
   auto t0 = Clock::now();
   // Rollbacks only ever put particles back to x_old, so the swept boxes (old U new) stay valid
-  // for all passes and the hash is built once. With the proximity stage the boxes are inflated by
-  // its search radius 2 T; they stay valid as long as its corrections keep every particle within
-  // 2 T of its swept box (checked; otherwise the hash is rebuilt).
-  const Real thickness = options_.thickness_factor * tris_.spacing;
-  const bool prox = options_.proximity && thickness > 0;
-  buildHash(x_old, x, prox ? 2 * thickness : 0.0);
-  st.broad_ms += msSince(t0);
-  if (prox) {
-    t0 = Clock::now();
-    std::vector<ProxPair> pairs;
-    detectProximity(x_old, x, thickness, pairs);
-    st.proximity_pairs = static_cast<long>(pairs.size());
-    if (!pairs.empty()) {
-      const VecX x_pred = x;
-      st.proximity_contacts = resolveProximity(pairs, thickness, x_old, x_pred, x, v, st);
-      if (st.proximity_contacts > 0) {
-        bool inside = true;
-        const Real R = 2 * thickness;
-        for (const ProxPair& pp : pairs)
-          for (int k = 0; k < 4 && inside; ++k) {
-            const Index p = pp.idx[k];
-            const Vec3 lo = node3(x_old, p).cwiseMin(node3(x_pred, p)).array() - R;
-            const Vec3 hi = node3(x_old, p).cwiseMax(node3(x_pred, p)).array() + R;
-            inside = (node3(x, p).array() >= lo.array()).all() && (node3(x, p).array() <= hi.array()).all();
-          }
-        if (!inside) {
-          ++st.proximity_rebuilds;
-          const auto t1 = Clock::now();
-          buildHash(x_old, x, R);
-          st.broad_ms += msSince(t1);
-        }
-      }
-    }
-    st.proximity_ms += msSince(t0);
-  }
-  t0 = Clock::now();
+  // for all passes and the hash is built once.
+  buildHash(x_old, x, 0.0);
   computeEdgeBoxes(x_old, x);
   st.broad_ms += msSince(t0);
   t0 = Clock::now();

@@ -48,9 +48,6 @@ struct ClothTriangles {
   /// Version-3 candidate set of each particle p0 (CSR; ascending ids): every triangle that shares a
   /// vertex with one of p0's two triangles (p0's own triangles included). Empty when p0 owns none.
   std::vector<Index> candidate_start, candidate_list;
-  /// Mass of each particle, relative (the area it represents: the cloth is uniform). Weights the
-  /// momentum-conserving impulses of the proximity stage; empty = equal masses.
-  std::vector<Real> vertex_mass;
 
   Index numTriangles() const { return static_cast<Index>(triangles.size()); }
   Index numEdges() const { return static_cast<Index>(edges.size()); }
@@ -135,32 +132,6 @@ struct SelfCollisionOptions {
   /// Broad-phase cell size as a multiple of the grid spacing d (1.5 was fastest on the 1 cm towel).
   Real cell_size_factor = 1.5;
 
-  // ---- v3 proximity stage (this module's addition, after Bridson, Fedkiw & Anderson 2002; see
-  // docs/collision.md, "Persistent contact"). Runs before the crossing detection of v3: every
-  // vertex-triangle (and edge-edge) pair of non-adjacent features closer than 2 thickness at x_old
-  // whose step would bring it closer than the thickness gets a momentum-conserving inelastic
-  // correction of the step's relative normal displacement and of the relative normal velocity, with
-  // Coulomb friction. Rollback stays as the fail-safe for whatever still crosses.
-  /// Off = v3 exactly as before (rollback only).
-  bool proximity = true;
-  /// Cloth thickness T as a multiple of the grid spacing d (T = thickness_factor d). Below 0.35 d so
-  /// that a flat sheet (non-adjacent features at >= 0.707 d) never repels itself.
-  Real thickness_factor = 0.25;
-  /// Fraction of the thickness deficit (T - gap) restored per step for pairs already closer than T
-  /// (0 = purely inelastic, the gap is only kept).
-  Real proximity_separation = 0.1;
-  /// Coulomb friction coefficient mu of cloth on cloth: the relative tangential displacement and
-  /// velocity are reduced by mu times the normal correction, never reversed.
-  Real proximity_friction = 0.3;
-  /// Gauss-Seidel sweeps over the contact pairs (positions, then velocities) per step.
-  int proximity_iterations = 8;
-  /// After each sweep over the contacts, restore the grid edges around the moved particles to their
-  /// lengths after the step (Provot 1995 style), so that a contact moves the patch the integrator
-  /// moved as one instead of straining the stiff tension springs.
-  bool proximity_propagate = true;
-  /// Also edge-edge pairs (two crossing edges of different layers), not only vertex-triangle pairs.
-  bool proximity_edges = true;
-
   /// Version 3 exactly as the thesis describes it, without this module's additions: grid edges only,
   /// no point-in-triangle check, no fallback rollback, the thesis's velocity reflection (e = 1).
   static SelfCollisionOptions thesisLiteral() {
@@ -171,7 +142,6 @@ struct SelfCollisionOptions {
     o.response = CollisionResponse::kThesis;
     o.restitution = 1.0;
     o.tangential_damping = 0.0;
-    o.proximity = false;
     return o;
   }
 };
@@ -185,11 +155,6 @@ struct SelfCollisionStats {
   int passes = 0;             ///< detection passes that found something to handle
   long unresolved = 0;        ///< crossings still present when apply() returned (cap or unresolvable)
   long point_test_rejections = 0;  ///< v3: side changes discarded by the point-in-triangle check
-  long proximity_pairs = 0;     ///< proximity stage: close pairs found (vertex-triangle + edge-edge)
-  long proximity_contacts = 0;  ///< proximity stage: pairs whose approach was corrected (contacts)
-  long proximity_edge_projections = 0;  ///< proximity stage: grid-edge length restorations
-  long proximity_rebuilds = 0;  ///< proximity stage moved a particle out of the swept boxes: hash rebuilt
-  double proximity_ms = 0;      ///< proximity detection and resolution
   double broad_ms = 0;        ///< building boxes and the hash
   double detect_ms = 0;       ///< candidate detection (parallel)
   double resolve_ms = 0;      ///< resolution (sequential, fixed order)
@@ -247,21 +212,6 @@ class SelfCollisionPass : public PostStepPass {
   void reflect(Index p, const Vec3& n, VecX& v) const;
   // Velocity response of a collision between group a (moving along +n) and group b (along -n).
   void respond(const Index* a, int na, const Index* b, int nb, const Vec3& n, VecX& v) const;
-  // Proximity stage (docs/collision.md, "Persistent contact").
-  struct ProxPair {
-    int type;       // 0: vertex a - triangle b; 1: edge a - edge b (a < b)
-    Index a, b;
-    Index idx[4];   // particles: the a side first
-    Real w[4];      // relative-displacement weights: +weights on the a side, -weights on the b side
-    Vec3 n;         // unit normal at x_old, from the b side toward the a side
-    Real gap;       // distance along n at x_old (> 0)
-    bool operator<(const ProxPair& o) const {
-      return type != o.type ? type < o.type : (a != o.a ? a < o.a : b < o.b);
-    }
-  };
-  void detectProximity(const VecX& x_old, const VecX& x, Real thickness, std::vector<ProxPair>& pairs) const;
-  long resolveProximity(const std::vector<ProxPair>& pairs, Real thickness, const VecX& x_old, const VecX& x_pred,
-                        VecX& x, VecX& v, SelfCollisionStats& st);
 
   ClothTriangles tris_;
   std::vector<char> pinned_;
@@ -273,8 +223,6 @@ class SelfCollisionPass : public PostStepPass {
   std::vector<Index> orphan_edges_;     // edges that belong to no triangle
   std::vector<Index> edge_owner_;       // triangle owning each edge, -1 for orphans
   std::vector<Index> vertex_edge_start_, vertex_edge_list_;  // edges incident to each vertex (CSR)
-  std::vector<Index> owned_vertex_start_, owned_vertex_list_;  // vertices owned by each triangle (CSR)
-  std::vector<Real> inv_mass_;          // relative inverse masses, 0 for pinned particles
   // Scratch marks of detectIncremental (epoch-stamped, so no O(n) clearing per pass).
   mutable std::vector<std::uint32_t> tri_mark_, work_mark_, edge_mark_;
   mutable std::uint32_t epoch_ = 0;
