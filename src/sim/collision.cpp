@@ -1,12 +1,17 @@
-// Triangulation and the self-collision pass (versions 1-3 of the thesis). See docs/collision.md.
+// Triangulation, the self-collision pass (versions 1-3 of the thesis, with v3's proximity stage) and
+// the contact-force model. See docs/collision.md.
 #include "textile_handling/sim/collision.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <unordered_map>
+#include <utility>
+#include <vector>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -22,6 +27,11 @@ using Clock = std::chrono::steady_clock;
 constexpr Index kParallelMin = 2048;
 
 double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+inline bool overlapInflated(const geom::Aabb& a, const geom::Aabb& b, Real r) {
+  return a.lo.x() - r <= b.hi.x() && b.lo.x() <= a.hi.x() + r && a.lo.y() - r <= b.hi.y() && b.lo.y() <= a.hi.y() + r &&
+         a.lo.z() - r <= b.hi.z() && b.lo.z() <= a.hi.z() + r;
+}
 
 std::uint64_t edgeKey(Index a, Index b) {
   if (a > b) std::swap(a, b);
@@ -105,6 +115,7 @@ ClothTriangles ClothTriangles::fromTopology(const ParticleTopology& topo) {
     t.candidate_list.insert(t.candidate_list.end(), scratch.begin(), scratch.end());
     t.candidate_start[static_cast<size_t>(p) + 1] = static_cast<Index>(t.candidate_list.size());
   }
+  if (topo.area.size() == static_cast<size_t>(n)) t.vertex_mass = topo.area;
   return t;
 }
 
@@ -144,6 +155,12 @@ void SelfCollisionStats::add(const SelfCollisionStats& o) {
   detect_ms += o.detect_ms;
   resolve_ms += o.resolve_ms;
   point_test_rejections += o.point_test_rejections;
+  proximity_pairs += o.proximity_pairs;
+  proximity_contacts += o.proximity_contacts;
+  proximity_edge_projections += o.proximity_edge_projections;
+  proximity_ms += o.proximity_ms;
+  proximity_detect_ms += o.proximity_detect_ms;
+  candidate_list_builds += o.candidate_list_builds;
 }
 
 // ---- self-collision pass --------------------------------------------------------------------------
@@ -155,8 +172,15 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
     throw std::invalid_argument("SelfCollisionPass: pinned mask size differs from the particle count");
   if (!(options_.d_min >= 0) || options_.max_passes < 1 || !(options_.cell_size_factor > 0) ||
       !(options_.barycentric_tolerance >= 0) || !(options_.restitution >= 0 && options_.restitution <= 1) ||
-      !(options_.tangential_damping >= 0 && options_.tangential_damping <= 1))
+      !(options_.tangential_damping >= 0 && options_.tangential_damping <= 1) ||
+      !(options_.thickness_factor > 0 && options_.thickness_factor < 0.35) ||
+      !(options_.proximity_separation >= 0 && options_.proximity_separation <= 1) ||
+      !(options_.proximity_friction >= 0 && std::isfinite(options_.proximity_friction)) ||
+      !(options_.proximity_search_factor >= 1 && options_.proximity_search_factor <= 3) ||
+      options_.proximity_iterations < 1)
     throw std::invalid_argument("SelfCollisionPass: invalid options");
+  if (!tris_.vertex_mass.empty() && static_cast<Index>(tris_.vertex_mass.size()) != tris_.num_vertices)
+    throw std::invalid_argument("SelfCollisionPass: vertex_mass size differs from the particle count");
   // Each edge is owned by the first triangle that contains it; edges in no triangle are orphans.
   std::vector<char> owned(tris_.edges.size(), 0);
   owned_start_.assign(tris_.triangles.size() + 1, 0);
@@ -183,6 +207,77 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
   std::vector<Index> fill(vertex_edge_start_.begin(), vertex_edge_start_.end() - 1);
   for (Index e = 0; e < tris_.numEdges(); ++e)
     for (Index p : tris_.edges[static_cast<size_t>(e)]) vertex_edge_list_[static_cast<size_t>(fill[static_cast<size_t>(p)]++)] = e;
+  // Each vertex is owned by the first triangle that contains it (proximity detection).
+  {
+    std::vector<char> vowned(nv, 0);
+    owned_vertex_start_.assign(tris_.triangles.size() + 1, 0);
+    for (size_t t = 0; t < tris_.triangles.size(); ++t) {
+      for (Index p : tris_.triangles[t]) {
+        if (vowned[static_cast<size_t>(p)]) continue;
+        vowned[static_cast<size_t>(p)] = 1;
+        owned_vertex_list_.push_back(p);
+      }
+      owned_vertex_start_[t + 1] = static_cast<Index>(owned_vertex_list_.size());
+    }
+  }
+  // Relative inverse masses (mean mass 1), 0 for pinned particles.
+  {
+    Real mean = 0;
+    for (Real m : tris_.vertex_mass) mean += m;
+    mean = tris_.vertex_mass.empty() ? 1 : mean / static_cast<Real>(tris_.vertex_mass.size());
+    inv_mass_.assign(nv, 1.0);
+    for (size_t p = 0; p < nv; ++p) {
+      if (!tris_.vertex_mass.empty()) {
+        const Real m = tris_.vertex_mass[p] / mean;
+        inv_mass_[p] = m > 0 && std::isfinite(m) ? 1.0 / m : 1.0;
+      }
+      if (pinned_[p]) inv_mass_[p] = 0;
+    }
+  }
+  // Broad-phase cells: the triangles that share a cell diagonal (edge (c1, c2) of both kinds).
+  {
+    std::unordered_map<std::uint64_t, Index> by_diagonal;
+    for (Index t = 0; t < tris_.numTriangles(); ++t) {
+      const auto& c = tris_.triangles[static_cast<size_t>(t)];
+      const auto ins = by_diagonal.emplace(edgeKey(c[1], c[2]), static_cast<Index>(groups_.size()));
+      if (ins.second) groups_.push_back({t, -1});
+      else groups_[static_cast<size_t>(ins.first->second)][1] = t;
+    }
+  }
+  // Triangles that share a vertex are always candidates of each other (their boxes touch): the
+  // feature pairs between them that can meet are fixed by the topology and listed once.
+  for (Index a = 0; a < tris_.numTriangles(); ++a) {
+    std::vector<Index> partners;
+    for (Index v : tris_.triangles[static_cast<size_t>(a)])
+      for (Index k = tris_.vertex_triangle_start[static_cast<size_t>(v)]; k < tris_.vertex_triangle_start[static_cast<size_t>(v) + 1]; ++k) {
+        const Index b = tris_.vertex_triangle_list[static_cast<size_t>(k)];
+        if (b > a) partners.push_back(b);
+      }
+    std::sort(partners.begin(), partners.end());
+    partners.erase(std::unique(partners.begin(), partners.end()), partners.end());
+    for (Index b : partners) {
+      for (const auto& [t, u] : {std::make_pair(a, b), std::make_pair(b, a)}) {
+        for (int j = 0; j < numOwnedEdges(t); ++j) {
+          const Index e = ownedEdges(t)[j];
+          const auto& ed = tris_.edges[static_cast<size_t>(e)];
+          if (!tris_.triangleHasVertex(u, ed[0]) && !tris_.triangleHasVertex(u, ed[1])) adj_cross_.emplace_back(e, u);
+        }
+        for (Index j = owned_vertex_start_[static_cast<size_t>(t)]; j < owned_vertex_start_[static_cast<size_t>(t) + 1]; ++j) {
+          const Index p = owned_vertex_list_[static_cast<size_t>(j)];
+          if (!tris_.triangleHasVertex(u, p)) adj_vt_.emplace_back(p, u);
+        }
+      }
+      for (int i = 0; i < numOwnedEdges(a); ++i)
+        for (int j = 0; j < numOwnedEdges(b); ++j) {
+          const Index e1 = ownedEdges(a)[i], e2 = ownedEdges(b)[j];
+          const auto& p = tris_.edges[static_cast<size_t>(e1)];
+          const auto& q = tris_.edges[static_cast<size_t>(e2)];
+          if (p[0] == q[0] || p[0] == q[1] || p[1] == q[0] || p[1] == q[1]) continue;
+          if (e1 >= tris_.num_grid_edges && e2 >= tris_.num_grid_edges) continue;  // two cell diagonals
+          adj_ee_.emplace_back(std::min(e1, e2), std::max(e1, e2));
+        }
+    }
+  }
   tri_mark_.assign(tris_.triangles.size(), 0);
   work_mark_.assign(tris_.triangles.size(), 0);
   edge_mark_.assign(tris_.edges.size(), 0);
@@ -197,6 +292,7 @@ long SelfCollisionPass::apply(const VecX& x_old, VecX& x, VecX& v) {
     throw std::invalid_argument("SelfCollisionPass: state size does not match the triangulation");
   SelfCollisionStats st;
   long events = 0;
+  query_inflate_ = 0;
   if (!tris_.triangles.empty()) {
     switch (options_.version) {
       case SelfCollisionVersion::kPointPath: events = applyV1(x_old, x, v, st); break;
@@ -225,6 +321,20 @@ void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate
     boxes_[static_cast<size_t>(t)] = b;
   }
   hash_.build(boxes_, options_.cell_size_factor * tris_.spacing);
+}
+
+void SelfCollisionPass::refreshBoxes(const VecX& x_old, const VecX& x, Real stale) {
+  const Index T = tris_.numTriangles();
+#pragma omp parallel for if (T >= kParallelMin) schedule(static)
+  for (Index t = 0; t < T; ++t) {
+    geom::Aabb b;
+    for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
+      b.extend(node3(x_old, c));
+      b.extend(node3(x, c));
+    }
+    boxes_[static_cast<size_t>(t)] = b;
+  }
+  query_inflate_ = stale;
 }
 
 geom::Aabb SelfCollisionPass::edgeBox(Index e, const VecX& x_old, const VecX& x) const {
@@ -300,14 +410,115 @@ void SelfCollisionPass::detectEdges(Index num_edges_considered, const VecX& x, s
         bool any = false;
         for (int j = 0; j < no; ++j) any = any || own[j] < num_edges_considered;
         if (!any) continue;
-        query.forEachOverlap(boxes_[static_cast<size_t>(k)], [&](int t2) {
+        query.forEachOverlap(queryBox(boxes_[static_cast<size_t>(k)]), [&](int t2) {
           for (int j = 0; j < no; ++j)
             if (own[j] < num_edges_considered) test(own[j], t2);
         });
       } else {
         const Index e = orphan_edges_[static_cast<size_t>(k - T)];
         if (e >= num_edges_considered) continue;
-        query.forEachOverlap(edge_boxes_[static_cast<size_t>(e)], [&](int t2) { test(e, t2); });
+        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) { test(e, t2); });
+      }
+    }
+  }
+  mergeSorted(local, hits);
+}
+
+void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real inflate) {
+  // Every pair of triangles whose swept boxes are within `inflate` of each other (per axis). The
+  // broad phase works on grid cells (the one or two triangles that share a cell diagonal, half as
+  // many boxes as triangles): the cell boxes, inflated by `inflate`, go into a hash that is queried
+  // once per cell with its own box, keeping the partners with a larger id; the triangle pairs of
+  // two such cells are then filtered with the triangle boxes.
+  const Index T = tris_.numTriangles();
+  const Index G = static_cast<Index>(groups_.size());
+  boxes_.resize(static_cast<size_t>(T));
+#pragma omp parallel for if (T >= kParallelMin) schedule(static)
+  for (Index t = 0; t < T; ++t) {
+    geom::Aabb b;
+    for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
+      b.extend(node3(x_old, c));
+      b.extend(node3(x, c));
+    }
+    boxes_[static_cast<size_t>(t)] = b;
+  }
+  group_boxes_.resize(static_cast<size_t>(G));
+#pragma omp parallel for if (G >= kParallelMin) schedule(static)
+  for (Index g = 0; g < G; ++g) {
+    geom::Aabb b = boxes_[static_cast<size_t>(groups_[static_cast<size_t>(g)][0])];
+    const Index t2 = groups_[static_cast<size_t>(g)][1];
+    if (t2 >= 0) {
+      b.extend(boxes_[static_cast<size_t>(t2)].lo);
+      b.extend(boxes_[static_cast<size_t>(t2)].hi);
+    }
+    if (inflate > 0) b.inflate(inflate);
+    group_boxes_[static_cast<size_t>(g)] = b;
+  }
+  group_hash_.build(group_boxes_, options_.cell_size_factor * tris_.spacing);
+  std::vector<std::vector<std::pair<Index, Index>>> local(static_cast<size_t>(threadCount()));
+#pragma omp parallel if (G >= kParallelMin)
+  {
+    auto& out = local[static_cast<size_t>(threadId())];
+    geom::SpatialHash::Query query(group_hash_);
+    auto pair = [&](Index a, Index b) {  // (triangles sharing a vertex: the static lists)
+      if (overlapInflated(boxes_[static_cast<size_t>(a)], boxes_[static_cast<size_t>(b)], inflate) &&
+          !tris_.trianglesShareVertex(a, b))
+        out.emplace_back(std::min(a, b), std::max(a, b));
+    };
+#pragma omp for schedule(dynamic, 256)
+    for (Index g = 0; g < G; ++g) {
+      const auto& mg = groups_[static_cast<size_t>(g)];
+      if (mg[1] >= 0) pair(mg[0], mg[1]);
+      geom::Aabb q = group_boxes_[static_cast<size_t>(g)];
+      q.inflate(-inflate);
+      query.forEachOverlapAbove(q, static_cast<int>(g), [&](int g2) {
+        const auto& m2 = groups_[static_cast<size_t>(g2)];
+        for (Index a : mg)
+          if (a >= 0)
+            for (Index b : m2)
+              if (b >= 0) pair(a, b);
+      });
+    }
+  }
+  cand_.clear();
+  for (auto& l : local) cand_.insert(cand_.end(), l.begin(), l.end());
+}
+
+void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
+  // The first detection of a pass: the candidate triangle pairs (boxes containing the current
+  // swept boxes) with the edges each triangle owns against the other triangle, plus the edges that
+  // belong to no triangle against the hash.
+  const Index nc = static_cast<Index>(cand_.size()), na = static_cast<Index>(adj_cross_.size());
+  const Index m = nc + na + static_cast<Index>(orphan_edges_.size());
+  std::vector<std::vector<Hit>> local(static_cast<size_t>(threadCount()));
+#pragma omp parallel if (m >= 4 * kParallelMin)
+  {
+    auto& out = local[static_cast<size_t>(threadId())];
+    geom::SpatialHash::Query query(hash_);
+    auto test = [&](Index e, Index t2) {
+      if (e >= num_edges_considered) return;
+      if (!edge_boxes_[static_cast<size_t>(e)].overlaps(boxes_[static_cast<size_t>(t2)])) return;
+      const auto& ed = tris_.edges[static_cast<size_t>(e)];
+      if (tris_.triangleHasVertex(t2, ed[0]) || tris_.triangleHasVertex(t2, ed[1])) return;
+      if (edgeCrosses(e, t2, x)) out.push_back(Hit{e, t2});
+    };
+#pragma omp for schedule(static)
+    for (Index k = 0; k < m; ++k) {
+      if (k >= nc && k < nc + na) {  // triangles sharing a vertex: the listed edge-triangle pairs
+        const auto& c = adj_cross_[static_cast<size_t>(k - nc)];
+        if (c.first < num_edges_considered &&
+            edge_boxes_[static_cast<size_t>(c.first)].overlaps(boxes_[static_cast<size_t>(c.second)]) &&
+            edgeCrosses(c.first, c.second, x))
+          out.push_back(Hit{c.first, c.second});
+      } else if (k < nc) {
+        const Index a = cand_[static_cast<size_t>(k)].first, b = cand_[static_cast<size_t>(k)].second;
+        if (!boxes_[static_cast<size_t>(a)].overlaps(boxes_[static_cast<size_t>(b)])) continue;
+        for (int j = 0; j < numOwnedEdges(a); ++j) test(ownedEdges(a)[j], b);
+        for (int j = 0; j < numOwnedEdges(b); ++j) test(ownedEdges(b)[j], a);
+      } else {
+        const Index e = orphan_edges_[static_cast<size_t>(k - nc - na)];
+        if (e >= num_edges_considered) continue;
+        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) { test(e, t2); });
       }
     }
   }
@@ -367,7 +578,7 @@ void SelfCollisionPass::detectIncremental(const std::vector<Index>& moved, Index
       if (k < static_cast<Index>(work.size())) {
         const Index t = work[static_cast<size_t>(k)];
         const bool td = triDirty(t);
-        query.forEachOverlap(boxes_[static_cast<size_t>(t)], [&](int t2) {
+        query.forEachOverlap(queryBox(boxes_[static_cast<size_t>(t)]), [&](int t2) {
           if (td)  // the dirty triangle t against every edge near it
             for (int j = 0; j < numOwnedEdges(t2); ++j) test(ownedEdges(t2)[j], t);
           for (int j = 0; j < numOwnedEdges(t); ++j) {  // t's dirty edges against every triangle
@@ -379,7 +590,7 @@ void SelfCollisionPass::detectIncremental(const std::vector<Index>& moved, Index
         const Index e = orphan_edges_[static_cast<size_t>(k) - work.size()];
         if (e >= num_edges_considered) continue;
         const bool ed = edgeDirty(e);
-        query.forEachOverlap(edge_boxes_[static_cast<size_t>(e)], [&](int t2) {
+        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) {
           if (ed || triDirty(t2)) test(e, t2);
         });
       }
@@ -481,17 +692,577 @@ Real crossingMinBarycentric(Index q, const std::array<Index, 3>& c, const VecX& 
 
 }  // namespace
 
+// ---- proximity stage (persistent contact) ---------------------------------------------------------
+//
+// Bridson, Fedkiw & Anderson (2002), section 7.1 ("repulsions"), adapted to a post-step pass: the
+// pass receives the accepted step x_old -> x (x = x_old + h v for the implicit integrators) and
+// corrects the step's displacement and the end velocity of close pairs, instead of the velocity
+// that an explicit position update would use. See docs/collision.md, "Persistent contact".
+
+namespace {
+
+// Closest points of the segments p1p2 and q1q2 (Ericson, Real-Time Collision Detection, 5.1.9):
+// parameters s (on p) and t (on q). Returns false for (nearly) parallel or degenerate segments.
+bool segmentClosestParams(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, Real* s, Real* t) {
+  const Vec3 d1 = p2 - p1, d2 = q2 - q1, r = p1 - q1;
+  const Real a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r);
+  if (!(a > 0) || !(e > 0)) return false;
+  const Real c = d1.dot(r), b = d1.dot(d2);
+  const Real den = a * e - b * b;
+  if (!(den > 1e-6 * a * e)) return false;  // parallel within ~0.06 degrees: vertex-triangle pairs cover it
+  Real ss = std::clamp((b * f - c * e) / den, 0.0, 1.0);
+  Real tt = (b * ss + f) / e;
+  if (tt < 0) {
+    tt = 0;
+    ss = std::clamp(-c / a, 0.0, 1.0);
+  } else if (tt > 1) {
+    tt = 1;
+    ss = std::clamp((b - c) / a, 0.0, 1.0);
+  }
+  *s = ss;
+  *t = tt;
+  return true;
+}
+
+}  // namespace
+
+namespace {
+
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5): returns the
+// squared distance.
+Real pointTriangleDistance2(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const Real d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return ap.squaredNorm();
+  const Vec3 bp = p - b;
+  const Real d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return bp.squaredNorm();
+  const Real vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return (p - (a + (d1 / (d1 - d3)) * ab)).squaredNorm();
+  const Vec3 cp = p - c;
+  const Real d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return cp.squaredNorm();
+  const Real vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return (p - (a + (d2 / (d2 - d6)) * ac)).squaredNorm();
+  const Real va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return (p - (b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b))).squaredNorm();
+  const Real den = va + vb + vc;
+  if (!(den != 0)) return std::min({ap.squaredNorm(), bp.squaredNorm(), cp.squaredNorm()});
+  const Real v = vb / den, w = vc / den;
+  return (p - (a + v * ab + w * ac)).squaredNorm();
+}
+
+// Squared distance between the segments p1p2 and q1q2 (Ericson 5.1.9, parallel case included).
+Real segmentDistance2(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2) {
+  const Vec3 d1 = p2 - p1, d2 = q2 - q1, r = p1 - q1;
+  const Real a = d1.dot(d1), e = d2.dot(d2), f = d2.dot(r);
+  Real s = 0, t = 0;
+  if (a <= 0 && e <= 0) return r.squaredNorm();
+  if (a <= 0) {
+    t = std::clamp(f / e, 0.0, 1.0);
+  } else {
+    const Real c = d1.dot(r);
+    if (e <= 0) {
+      s = std::clamp(-c / a, 0.0, 1.0);
+    } else {
+      const Real b = d1.dot(d2), den = a * e - b * b;
+      s = den > 0 ? std::clamp((b * f - c * e) / den, 0.0, 1.0) : 0.0;
+      t = (b * s + f) / e;
+      if (t < 0) {
+        t = 0;
+        s = std::clamp(-c / a, 0.0, 1.0);
+      } else if (t > 1) {
+        t = 1;
+        s = std::clamp((b - c) / a, 0.0, 1.0);
+      }
+    }
+  }
+  return ((p1 + s * d1) - (q1 + t * d2)).squaredNorm();
+}
+
+}  // namespace
+
+void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
+  // Candidate pairs within `radius` at x_old (a Verlet list, as in molecular dynamics): they are
+  // re-evaluated every step until some particle has moved by more than a quarter of the list's
+  // margin. Source: the candidate triangle pairs of this step (boxes inflated by radius / 2 each).
+  const Index T = tris_.numTriangles();
+  const Index E = tris_.numEdges();
+  std::vector<geom::Aabb> tbox(static_cast<size_t>(T)), ebox(static_cast<size_t>(E));
+#pragma omp parallel for if (T >= kParallelMin) schedule(static)
+  for (Index t = 0; t < T; ++t) {
+    geom::Aabb b;
+    for (Index c : tris_.triangles[static_cast<size_t>(t)]) b.extend(node3(x_old, c));
+    tbox[static_cast<size_t>(t)] = b;
+  }
+#pragma omp parallel for if (E >= kParallelMin) schedule(static)
+  for (Index e = 0; e < E; ++e) {
+    geom::Aabb b;
+    for (Index c : tris_.edges[static_cast<size_t>(e)]) b.extend(node3(x_old, c));
+    ebox[static_cast<size_t>(e)] = b;
+  }
+  const Real r2 = radius * radius;
+  const bool with_edges = options_.proximity_edges;
+  // Edge-edge pairs in which at least one edge is a grid edge: the vertex-triangle pairs describe
+  // most contacts; pairs of two cell diagonals add little and cost a quarter of the tests.
+  const Index ee_limit = tris_.numEdges(), ngrid = tris_.num_grid_edges;
+  const Index nc = static_cast<Index>(cand_.size()), nav = static_cast<Index>(adj_vt_.size());
+  const Index nae = with_edges ? static_cast<Index>(adj_ee_.size()) : 0;
+  const Index m = nc + nav + nae;
+  std::vector<std::vector<std::pair<Index, Index>>> lvt(static_cast<size_t>(threadCount())),
+      lee(static_cast<size_t>(threadCount()));
+#pragma omp parallel if (m >= 4 * kParallelMin)
+  {
+    auto& ovt = lvt[static_cast<size_t>(threadId())];
+    auto& oee = lee[static_cast<size_t>(threadId())];
+    // Vertices owned by triangle k against triangle t2.
+    auto vt = [&](Index k, Index t2) {
+      const auto& c = tris_.triangles[static_cast<size_t>(t2)];
+      const geom::Aabb& b2 = tbox[static_cast<size_t>(t2)];
+      for (Index j = owned_vertex_start_[static_cast<size_t>(k)]; j < owned_vertex_start_[static_cast<size_t>(k) + 1]; ++j) {
+        const Index p = owned_vertex_list_[static_cast<size_t>(j)];
+        if (c[0] == p || c[1] == p || c[2] == p) continue;
+        const Vec3 xp = node3(x_old, p);
+        if ((xp.array() < b2.lo.array() - radius).any() || (xp.array() > b2.hi.array() + radius).any()) continue;
+        if (pointTriangleDistance2(xp, node3(x_old, c[0]), node3(x_old, c[1]), node3(x_old, c[2])) <= r2)
+          ovt.emplace_back(p, t2);
+      }
+    };
+#pragma omp for schedule(static)
+    for (Index q = 0; q < m; ++q) {
+      if (q >= nc) {  // triangles sharing a vertex: the listed feature pairs
+        if (q < nc + nav) {
+          const auto& c = adj_vt_[static_cast<size_t>(q - nc)];
+          const auto& tc = tris_.triangles[static_cast<size_t>(c.second)];
+          const Vec3 xp = node3(x_old, c.first);
+          const geom::Aabb& b2 = tbox[static_cast<size_t>(c.second)];
+          if ((xp.array() < b2.lo.array() - radius).any() || (xp.array() > b2.hi.array() + radius).any()) continue;
+          if (pointTriangleDistance2(xp, node3(x_old, tc[0]), node3(x_old, tc[1]), node3(x_old, tc[2])) <= r2)
+            ovt.push_back(c);
+        } else {
+          const auto& c = adj_ee_[static_cast<size_t>(q - nc - nav)];
+          if (!overlapInflated(ebox[static_cast<size_t>(c.first)], ebox[static_cast<size_t>(c.second)], radius)) continue;
+          const auto& pe = tris_.edges[static_cast<size_t>(c.first)];
+          const auto& qe = tris_.edges[static_cast<size_t>(c.second)];
+          if (segmentDistance2(node3(x_old, pe[0]), node3(x_old, pe[1]), node3(x_old, qe[0]), node3(x_old, qe[1])) <= r2)
+            oee.push_back(c);
+        }
+        continue;
+      }
+      const Index k = cand_[static_cast<size_t>(q)].first, t2 = cand_[static_cast<size_t>(q)].second;
+      if (!overlapInflated(tbox[static_cast<size_t>(k)], tbox[static_cast<size_t>(t2)], radius)) continue;
+      vt(k, t2);
+      vt(t2, k);
+      if (!with_edges) continue;
+      for (int i = 0; i < numOwnedEdges(k); ++i) {
+        const Index e1 = ownedEdges(k)[i];
+        if (e1 >= ee_limit) continue;
+        const auto& pe = tris_.edges[static_cast<size_t>(e1)];
+        for (int j = 0; j < numOwnedEdges(t2); ++j) {
+          const Index e2 = ownedEdges(t2)[j];
+          if (e2 >= ee_limit) continue;
+          if (e1 >= ngrid && e2 >= ngrid) continue;  // two cell diagonals: see ee_limit
+          const auto& qe = tris_.edges[static_cast<size_t>(e2)];
+          if (pe[0] == qe[0] || pe[0] == qe[1] || pe[1] == qe[0] || pe[1] == qe[1]) continue;
+          if (!overlapInflated(ebox[static_cast<size_t>(e1)], ebox[static_cast<size_t>(e2)], radius)) continue;
+          if (segmentDistance2(node3(x_old, pe[0]), node3(x_old, pe[1]), node3(x_old, qe[0]), node3(x_old, qe[1])) <= r2)
+            oee.emplace_back(std::min(e1, e2), std::max(e1, e2));
+        }
+      }
+    }
+  }
+  prox_cache_vt_.clear();
+  prox_cache_ee_.clear();
+  // (The order is the thread's; detectProximity sorts what it finds, so results do not depend on it.)
+  for (auto& l : lvt) prox_cache_vt_.insert(prox_cache_vt_.end(), l.begin(), l.end());
+  for (auto& l : lee) prox_cache_ee_.insert(prox_cache_ee_.end(), l.begin(), l.end());
+}
+
+void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const {
+  // Pairs closer than the search radius R at x_old, among the candidates of the list.
+  const Real R = proximitySearchRadius(thickness);
+  // A vertex projecting slightly outside a triangle still counts (the neighbouring triangle of a
+  // fold's ridge may not see it either); weights are clamped to the triangle.
+  constexpr Real kBaryTol = 0.05;
+  // Edge-edge pairs only where the closest points are interior to both edges (elsewhere a
+  // vertex-triangle pair describes the contact).
+  constexpr Real kEdgeEnd = 1e-3;
+  auto vertexTriangle = [&](Index p, Index t2, std::vector<ProxPair>& out) {
+    const auto& c = tris_.triangles[static_cast<size_t>(t2)];
+    const Vec3 xp = node3(x_old, p);
+    const Vec3 a = node3(x_old, c[0]);
+    const Vec3 e0 = node3(x_old, c[1]) - a, e1 = node3(x_old, c[2]) - a;
+    Vec3 nrm = e0.cross(e1);
+    const Real len = nrm.norm();
+    if (!(len > 1e-9 * (e0.squaredNorm() + e1.squaredNorm()))) return;  // degenerate triangle
+    nrm /= len;
+    const Vec3 w = xp - a;
+    Real dist = nrm.dot(w);
+    if (!(std::abs(dist) < R) || dist == 0) return;
+    const Real d00 = e0.dot(e0), d01 = e0.dot(e1), d11 = e1.dot(e1), d20 = w.dot(e0), d21 = w.dot(e1);
+    const Real den = d00 * d11 - d01 * d01;
+    Real b1 = (d11 * d20 - d01 * d21) / den, b2 = (d00 * d21 - d01 * d20) / den, b0 = 1 - b1 - b2;
+    if (std::min({b0, b1, b2}) < -kBaryTol) return;
+    b0 = std::max(b0, 0.0);
+    b1 = std::max(b1, 0.0);
+    b2 = std::max(b2, 0.0);
+    const Real sum = b0 + b1 + b2;
+    if (dist < 0) {
+      nrm = -nrm;
+      dist = -dist;
+    }
+    ProxPair pp;
+    pp.type = 0;
+    pp.a = p;
+    pp.b = t2;
+    pp.idx[0] = p;
+    pp.w[0] = 1;
+    for (int k = 0; k < 3; ++k) pp.idx[k + 1] = c[static_cast<size_t>(k)];
+    pp.w[1] = -b0 / sum;
+    pp.w[2] = -b1 / sum;
+    pp.w[3] = -b2 / sum;
+    pp.n = nrm;
+    pp.gap = dist;
+    out.push_back(pp);
+  };
+  auto edgeEdge = [&](Index e1, Index e2, std::vector<ProxPair>& out) {
+    const auto& p = tris_.edges[static_cast<size_t>(e1)];
+    const auto& q = tris_.edges[static_cast<size_t>(e2)];
+    const Vec3 p1 = node3(x_old, p[0]), p2 = node3(x_old, p[1]), q1 = node3(x_old, q[0]), q2 = node3(x_old, q[1]);
+    Real s = 0, t = 0;
+    if (!segmentClosestParams(p1, p2, q1, q2, &s, &t)) return;
+    if (s < kEdgeEnd || s > 1 - kEdgeEnd || t < kEdgeEnd || t > 1 - kEdgeEnd) return;
+    const Vec3 d = (p1 + s * (p2 - p1)) - (q1 + t * (q2 - q1));
+    const Real dist = d.norm();
+    if (!(dist < R) || !(dist > 0)) return;
+    ProxPair pp;
+    pp.type = 1;
+    pp.a = e1;
+    pp.b = e2;
+    pp.idx[0] = p[0];
+    pp.idx[1] = p[1];
+    pp.idx[2] = q[0];
+    pp.idx[3] = q[1];
+    pp.w[0] = 1 - s;
+    pp.w[1] = s;
+    pp.w[2] = -(1 - t);
+    pp.w[3] = -t;
+    pp.n = d / dist;
+    pp.gap = dist;
+    out.push_back(pp);
+  };
+  const Index nvt = static_cast<Index>(prox_cache_vt_.size()), nee = static_cast<Index>(prox_cache_ee_.size());
+  const Index m = nvt + nee;
+  std::vector<std::vector<ProxPair>> local(static_cast<size_t>(threadCount()));
+#pragma omp parallel if (m >= 4 * kParallelMin)
+  {
+    auto& out = local[static_cast<size_t>(threadId())];
+#pragma omp for schedule(static)
+    for (Index k = 0; k < m; ++k) {
+      if (k < nvt) {
+        const auto& c = prox_cache_vt_[static_cast<size_t>(k)];
+        vertexTriangle(c.first, c.second, out);
+      } else {
+        const auto& c = prox_cache_ee_[static_cast<size_t>(k - nvt)];
+        edgeEdge(c.first, c.second, out);
+      }
+    }
+  }
+  pairs.clear();
+  for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
+  std::sort(pairs.begin(), pairs.end());
+}
+
+Real SelfCollisionPass::estimateStep(const VecX& x_old, const VecX& x_pred, const VecX& v) const {
+  // The implicit integrators end a step with x = x_old + h v exactly (pinned particles excepted);
+  // h is recovered by least squares and accepted only when the relation holds to rounding.
+  const Index nv = tris_.num_vertices;
+  Real dv = 0, vv = 0, big = 0;
+  for (Index p = 0; p < nv; ++p) {
+    if (pinned_[static_cast<size_t>(p)]) continue;
+    const Vec3 dp = node3(x_pred, p) - node3(x_old, p);
+    dv += dp.dot(node3(v, p));
+    vv += node3(v, p).squaredNorm();
+    big = std::max(big, dp.norm());
+  }
+  if (!(vv > 0) || !(dv > 0)) return -1;
+  const Real h = dv / vv;
+  for (Index p = 0; p < nv; ++p) {
+    if (pinned_[static_cast<size_t>(p)]) continue;
+    if (!((Vec3(node3(x_pred, p) - node3(x_old, p)) - h * Vec3(node3(v, p))).norm() <= 1e-6 * big + 1e-15)) return -1;
+  }
+  return h;
+}
+
+long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Real thickness, const VecX& x_old,
+                                         const VecX& x_pred, VecX& x, VecX& v, SelfCollisionStats& st) {
+  // A projection of the step x_old -> x_pred onto the contact constraints, by Gauss-Seidel over the
+  // pairs (sorted: deterministic) in the mass metric (position-based dynamics, Mueller et al. 2007,
+  // with accumulated multipliers as in XPBD, Macklin et al. 2016):
+  //  * contact (inequality): the relative normal displacement of the step,
+  //    delta = n . sum_i w_i (x_i - x_old_i), must not fall below T - gap (gap >= T: approach up to
+  //    the thickness) or s (T - gap) (gap < T: no approach, restore a fraction s of the deficit). A
+  //    multiplier lambda moves particle i by w_i m_i^-1 lambda n: Bridson et al. 2002's
+  //    momentum-conserving vertex-face / edge-edge impulse, in positions;
+  //  * Coulomb friction: the relative tangential displacement is cancelled by a tangential
+  //    multiplier limited to mu lambda_n (sticking inside the cone, sliding outside);
+  //  * grid edges (propagate): every grid edge touched keeps its length after the step, so that a
+  //    correction moves the patch the integrator moved with it instead of straining the stiff
+  //    tension springs (Provot 1995's deformation constraints, as a projection).
+  // With contact-force feedback (a ContactForceModel passes the contact forces of the last step to
+  // the integrator) the step x_old -> x_pred already felt the multipliers of the previous step as
+  // forces: they are the starting point and only the change is applied here; the total is stored
+  // as accelerations for the next step. At rest the change vanishes: the rest state is a fixed point.
+  const Real mu = options_.proximity_friction, sep = options_.proximity_separation;
+  const Index nv = tris_.num_vertices;
+  const Index ne = tris_.num_grid_edges;
+  const bool propagate = options_.proximity_propagate;
+  Real h = estimateStep(x_old, x_pred, v);
+  // A step in which nothing moved (exact rest) says nothing about h: keep the last one, so that the
+  // contact forces carry on.
+  if (!(h > 0) && force_feedback_ && last_h_ > 0 && x_pred == x_old) h = last_h_;
+  if (h > 0) last_h_ = h;
+  // Corrections below this are not worth a sweep: 0.1 % of the thickness, and at most what moves a
+  // particle at 0.1 mm/s (far below the rest threshold) over the step.
+  const Real tol = h > 0 ? std::min(1e-3 * thickness, 1e-4 * h) : 1e-3 * thickness;
+  const bool feedback = force_feedback_ && h > 0;
+  std::vector<Real> ln(pairs.size(), 0.0), W(pairs.size(), 0.0);
+  std::vector<Vec3> lt(pairs.size(), Vec3::Zero());
+  for (size_t k = 0; k < pairs.size(); ++k) {
+    Real w = 0;
+    for (int j = 0; j < 4; ++j) w += pairs[k].w[j] * pairs[k].w[j] * inv_mass_[static_cast<size_t>(pairs[k].idx[j])];
+    W[k] = w;
+    if (!feedback) continue;
+    const auto it = contact_memory_.find(pairKey(pairs[k]));
+    if (it == contact_memory_.end()) continue;
+    const Vec3 lam = (h * h) * it->second;  // the multiplier the last step's force amounts to
+    ln[k] = std::max(0.0, lam.dot(pairs[k].n));
+    lt[k] = lam - lam.dot(pairs[k].n) * pairs[k].n;
+    const Real cap = mu * ln[k], ltn = lt[k].norm();
+    if (ltn > cap) lt[k] *= ltn > 0 ? cap / ltn : 0.0;
+  }
+  std::vector<char> in_region(static_cast<size_t>(nv), 0);
+  std::vector<Index> region;
+  auto touch = [&](Index p) {
+    if (!in_region[static_cast<size_t>(p)]) {
+      in_region[static_cast<size_t>(p)] = 1;
+      region.push_back(p);
+    }
+  };
+  auto applyPair = [&](size_t k, const Vec3& d, VecX& s) {
+    const ProxPair& pp = pairs[k];
+    for (int j = 0; j < 4; ++j) {
+      const Real im = inv_mass_[static_cast<size_t>(pp.idx[j])];
+      if (im > 0 && pp.w[j] != 0) {
+        node3(s, pp.idx[j]) += (pp.w[j] * im) * d;
+        touch(pp.idx[j]);
+      }
+    }
+  };
+  std::vector<char> edge_listed(propagate ? static_cast<size_t>(ne) : 0, 0);
+  std::vector<Index> edges;
+  std::vector<Real> edge_len;  // target lengths (after the step), by position in `edges`
+  for (int it = 0; it < options_.proximity_iterations; ++it) {
+    Real change = 0;
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      if (!(W[k] > 0)) continue;
+      const ProxPair& pp = pairs[k];
+      Vec3 rel = Vec3::Zero();
+      for (int j = 0; j < 4; ++j) rel += pp.w[j] * (node3(x, pp.idx[j]) - node3(x_old, pp.idx[j]));
+      const Real delta = pp.n.dot(rel);
+      const Real target = pp.gap >= thickness ? thickness - pp.gap : sep * (thickness - pp.gap);
+      const Real n_new = std::max(0.0, ln[k] + (target - delta) / W[k]);
+      // Friction: cancel the relative tangential displacement within |lambda_t| <= mu lambda_n.
+      Vec3 t_new = lt[k] - (rel - delta * pp.n) / W[k];
+      t_new -= pp.n.dot(t_new) * pp.n;
+      const Real cap = mu * n_new, tn = t_new.norm();
+      if (tn > cap) t_new *= tn > 0 ? cap / tn : 0.0;
+      const Real dn = n_new - ln[k];
+      const Vec3 dt = t_new - lt[k];
+      const Real moved = (std::abs(dn) + dt.norm()) * W[k];
+      if (!(moved > tol)) continue;
+      applyPair(k, dn * pp.n + dt, x);
+      ln[k] = n_new;
+      lt[k] = t_new;
+      change = std::max(change, moved);
+    }
+    if (!propagate) {
+      if (!(change > tol)) break;
+      continue;
+    }
+    // Grid edges around every particle moved so far (kept sorted: deterministic).
+    const size_t before = edges.size();
+    for (Index p : region)
+      for (Index q = vertex_edge_start_[static_cast<size_t>(p)]; q < vertex_edge_start_[static_cast<size_t>(p) + 1]; ++q) {
+        const Index e = vertex_edge_list_[static_cast<size_t>(q)];
+        if (e >= ne || edge_listed[static_cast<size_t>(e)]) continue;
+        edge_listed[static_cast<size_t>(e)] = 1;
+        edges.push_back(e);
+      }
+    if (edges.size() != before) {
+      std::sort(edges.begin(), edges.end());
+      edge_len.resize(edges.size());
+      for (size_t k = 0; k < edges.size(); ++k) {
+        const auto& ed = tris_.edges[static_cast<size_t>(edges[k])];
+        edge_len[k] = (node3(x_pred, ed[0]) - node3(x_pred, ed[1])).norm();
+      }
+    }
+    for (size_t k = 0; k < edges.size(); ++k) {
+      const auto& ed = tris_.edges[static_cast<size_t>(edges[k])];
+      const Index a = ed[0], b = ed[1];
+      const Real wa = inv_mass_[static_cast<size_t>(a)], wb = inv_mass_[static_cast<size_t>(b)];
+      if (!(wa + wb > 0)) continue;
+      Vec3 u = node3(x, a) - node3(x, b);
+      const Real len = u.norm();
+      if (!(len > 0)) continue;
+      const Real c = len - edge_len[k];
+      if (!(std::abs(c) > tol)) continue;
+      u *= c / ((wa + wb) * len);
+      if (wa > 0) {
+        node3(x, a) -= wa * u;
+        touch(a);
+      }
+      if (wb > 0) {
+        node3(x, b) += wb * u;
+        touch(b);
+      }
+      change = std::max(change, std::abs(c));
+      ++st.proximity_edge_projections;
+    }
+    if (!(change > tol)) break;
+  }
+  long contacts = 0;
+  for (size_t k = 0; k < pairs.size(); ++k) contacts += ln[k] > 0 ? 1 : 0;
+  // Contact forces for the next step (as accelerations of the particles, relative-mass weighted).
+  contact_memory_.clear();
+  if (feedback) {
+    if (contact_accel_.size() != 3 * nv) contact_accel_ = VecX::Zero(3 * nv);
+    contact_accel_.setZero();
+    const Real ih2 = 1.0 / (h * h);
+    for (size_t k = 0; k < pairs.size(); ++k) {
+      if (!(ln[k] > 0)) continue;
+      const Vec3 a = ih2 * (ln[k] * pairs[k].n + lt[k]);
+      contact_memory_.emplace(pairKey(pairs[k]), a);
+      for (int j = 0; j < 4; ++j) {
+        const Real im = inv_mass_[static_cast<size_t>(pairs[k].idx[j])];
+        if (im > 0) node3(contact_accel_, pairs[k].idx[j]) += (pairs[k].w[j] * im) * a;
+      }
+    }
+  } else {
+    contact_accel_.resize(0);
+  }
+  // Velocities: with x = x_old + h v the end velocity follows the corrected displacement, which
+  // keeps x and v consistent (the correction acts as an impulse). Otherwise (h unknown) an inelastic
+  // impulse on the relative normal velocity of every contact, with friction.
+  if (h > 0) {
+    std::sort(region.begin(), region.end());
+    for (Index p : region) node3(v, p) += (Vec3(node3(x, p)) - Vec3(node3(x_pred, p))) / h;
+  } else {
+    for (int it = 0; it < options_.proximity_iterations; ++it) {
+      bool any = false;
+      for (size_t k = 0; k < pairs.size(); ++k) {
+        if (!(ln[k] > 0) || !(W[k] > 0)) continue;
+        const ProxPair& pp = pairs[k];
+        Vec3 rel = Vec3::Zero();
+        for (int j = 0; j < 4; ++j) rel += pp.w[j] * node3(v, pp.idx[j]);
+        const Real un = pp.n.dot(rel);
+        if (!(un < 0)) continue;
+        Vec3 d = -un * pp.n;
+        const Vec3 ut = rel - un * pp.n;
+        const Real utn = ut.norm();
+        if (mu > 0 && utn > 0) d -= std::min(1.0, mu * -un / utn) * ut;
+        applyPair(k, d / W[k], v);
+        any = true;
+      }
+      if (!any) break;
+    }
+  }
+  return contacts;
+}
+
 long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisionStats& st) {
   const Index E = options_.include_diagonals ? tris_.numEdges() : tris_.num_grid_edges;
+  const Index nv = tris_.num_vertices;
   auto t0 = Clock::now();
-  // Rollbacks only ever put particles back to x_old, so the swept boxes (old U new) stay valid
-  // for all passes and the hash is built once.
-  buildHash(x_old, x, 0.0);
-  computeEdgeBoxes(x_old, x);
+  // Broad phase: the candidate triangle pairs (stored swept boxes inflated by the list radius Rv
+  // overlapping a swept box) and, with the proximity stage, the vertex-triangle and edge-edge
+  // pairs within Rv at x_old. Both lists are kept (Verlet lists) while every particle stays within
+  // Rv / 2 of its swept box at the build (crossings: two triangles that touch now were within Rv
+  // then) and within (Rv - R) / 2 of its position x_old at the build (proximity: a pair within the
+  // search radius R now was within Rv then). Without the proximity stage (Rv = 0) the list is built
+  // every step. Rollbacks only ever put particles back to x_old, which stays inside the boxes.
+  const Real thickness = options_.thickness_factor * tris_.spacing;
+  const bool prox = options_.proximity && thickness > 0;
+  const Real R = proximitySearchRadius(thickness);
+  const Real Rv = prox ? proximityListRadius(thickness) : 0.0;
+  auto outside = [&](const VecX& y) {  // largest distance of a particle outside its reference box
+    Real d = 0;
+    for (Index p = 0; p < nv; ++p)
+      for (int k = 0; k < 3; ++k) {
+        const Real c = y[3 * p + k];
+        d = std::max({d, list_lo_[static_cast<size_t>(3 * p + k)] - c, c - list_hi_[static_cast<size_t>(3 * p + k)]});
+      }
+    return d;
+  };
+  auto buildCandidates = [&](const VecX& xn) {
+    collectCandidates(x_old, xn, Rv);
+    list_lo_.resize(static_cast<size_t>(3 * nv));
+    list_hi_.resize(static_cast<size_t>(3 * nv));
+    for (Index k = 0; k < 3 * nv; ++k) {
+      list_lo_[static_cast<size_t>(k)] = std::min(x_old[k], xn[k]);
+      list_hi_[static_cast<size_t>(k)] = std::max(x_old[k], xn[k]);
+    }
+    ++st.candidate_list_builds;
+  };
+  hash_current_ = false;
+  bool rebuild = !prox || !list_valid_ || list_radius_ != Rv || list_edges_ != options_.proximity_edges ||
+                 list_old_.size() != x_old.size();
+  if (!rebuild) {
+    Real dold = 0;
+    for (Index p = 0; p < nv; ++p) dold = std::max(dold, (node3(x_old, p) - node3(list_old_, p)).norm());
+    rebuild = 2 * dold > Rv - R || 2 * outside(x) > Rv;
+  }
+  if (rebuild) {
+    buildCandidates(x);
+    if (prox) {
+      buildProximityCache(x_old, Rv);
+      list_old_ = x_old;
+      list_valid_ = true;
+      list_radius_ = Rv;
+      list_edges_ = options_.proximity_edges;
+    }
+  }
   st.broad_ms += msSince(t0);
+  if (prox) {
+    t0 = Clock::now();
+    std::vector<ProxPair> pairs;
+    detectProximity(x_old, thickness, pairs);
+    st.proximity_pairs = static_cast<long>(pairs.size());
+    st.proximity_detect_ms += msSince(t0);
+    if (pairs.empty()) {
+      resetContactForces();
+    } else {
+      const VecX x_pred = x;
+      st.proximity_contacts = resolveProximity(pairs, thickness, x_old, x_pred, x, v, st);
+    }
+    st.proximity_ms += msSince(t0);
+    t0 = Clock::now();
+    // The corrections may have moved particles out of what the candidate list covers.
+    if (2 * outside(x) > Rv) buildCandidates(x);
+    st.broad_ms += msSince(t0);
+  }
+  t0 = Clock::now();
+  computeEdgeBoxes(x_old, x);
+  refreshBoxes(x_old, x, 0.0);  // the current swept boxes (the list's boxes contain them)
+  st.broad_ms += msSince(t0);
+  if (!orphan_edges_.empty() && !hash_current_) {  // orphan edges are queried against the hash
+    buildHash(x_old, x, 0.0);
+    hash_current_ = true;
+  }
   t0 = Clock::now();
   std::vector<Hit> hits;
-  detectEdges(E, x, hits);
+  detectFromCandidates(E, x, hits);
   st.detect_ms += msSince(t0);
   st.crossings = static_cast<long>(hits.size());
   long events = 0;
@@ -580,6 +1351,10 @@ long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
     std::vector<Hit> left;
     for (const Hit& h : hits)
       if (edgeCrosses(h.a, h.t, x)) left.push_back(h);
+    if (!hash_current_) {  // the candidate list was reused: the queries need this step's boxes
+      buildHash(x_old, x, 0.0);
+      hash_current_ = true;
+    }
     detectIncremental(moved, E, x, hits);
     hits.insert(hits.end(), left.begin(), left.end());
     std::sort(hits.begin(), hits.end());
@@ -714,6 +1489,97 @@ long SelfCollisionPass::applyV1(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
     }
   }
   return events;
+}
+
+}  // namespace textile_handling
+
+namespace textile_handling {
+
+// ---- contact-force feedback ------------------------------------------------------------------------
+
+ContactForceModel::ContactForceModel(std::unique_ptr<ClothModel> base, SelfCollisionPass& pass)
+    : owned_(std::move(base)), base_(*owned_), pass_(pass) {
+  if (base_.numNodes() != pass_.triangles().num_vertices || base_.dofsPerNode() != 3)
+    throw std::invalid_argument("ContactForceModel: the model does not match the self-collision pass");
+  pass_.force_feedback_ = true;
+}
+
+ContactForceModel::ContactForceModel(ClothModel& base, SelfCollisionPass& pass) : base_(base), pass_(pass) {
+  if (base_.numNodes() != pass_.triangles().num_vertices || base_.dofsPerNode() != 3)
+    throw std::invalid_argument("ContactForceModel: the model does not match the self-collision pass");
+  pass_.force_feedback_ = true;
+}
+
+std::unique_ptr<ClothModel> withContactForces(std::unique_ptr<ClothModel> model, SelfCollisionPass& pass) {
+  const SelfCollisionOptions& o = pass.options();
+  if (!model || o.version != SelfCollisionVersion::kRollback || !o.proximity || !o.contact_forces) return model;
+  if (model->dofsPerNode() != 3 || model->numNodes() != pass.triangles().num_vertices) return model;
+  if (const auto* c = dynamic_cast<const ContactForceModel*>(model.get()))
+    if (&c->pass() == &pass) return model;  // already wrapped for this pass
+  return std::make_unique<ContactForceModel>(std::move(model), pass);
+}
+
+ForceReport ContactForceModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
+  const ForceReport r = base_.computeForces(x, v, f, jac);
+  const VecX& a = pass_.contactAccelerations();
+  if (a.size() == f.size()) f += base_.massPerDof().cwiseProduct(a);
+  return r;
+}
+
+// Layout: base state, contact accelerations (A values), pairs (5 values each: key high 31 bits, key
+// low 32 bits, acceleration x, y, z), then A, the number of pairs and the base state's size.
+std::vector<Real> ContactForceModel::internalState() const {
+  std::vector<Real> s = base_.internalState();
+  const size_t base_size = s.size();
+  const VecX& a = pass_.contact_accel_;
+  s.insert(s.end(), a.data(), a.data() + a.size());
+  std::vector<std::pair<std::uint64_t, Vec3>> mem(pass_.contact_memory_.begin(), pass_.contact_memory_.end());
+  std::sort(mem.begin(), mem.end(), [](const auto& p, const auto& q) { return p.first < q.first; });
+  for (const auto& m : mem) {
+    s.push_back(static_cast<Real>(m.first >> 32));
+    s.push_back(static_cast<Real>(m.first & 0xffffffffULL));
+    s.push_back(m.second.x());
+    s.push_back(m.second.y());
+    s.push_back(m.second.z());
+  }
+  s.push_back(static_cast<Real>(a.size()));
+  s.push_back(static_cast<Real>(mem.size()));
+  s.push_back(static_cast<Real>(base_size));
+  return s;
+}
+
+bool ContactForceModel::setInternalState(const std::vector<Real>& state) {
+  if (state.empty()) {  // a state written without contact forces (e.g. by the bare model)
+    if (!base_.setInternalState(state)) return false;
+    pass_.resetContactForces();
+    return true;
+  }
+  if (state.size() < 3) return false;
+  const Real na = state[state.size() - 3], nm = state[state.size() - 2], nb = state[state.size() - 1];
+  const size_t n3 = static_cast<size_t>(3 * base_.numNodes());
+  if (!(na == 0 || na == static_cast<Real>(n3)) || !(nm >= 0) || !(nb >= 0) || nm != std::floor(nm) || nb != std::floor(nb))
+    return false;
+  const size_t A = static_cast<size_t>(na), M = static_cast<size_t>(nm), B = static_cast<size_t>(nb);
+  if (B + A + 5 * M + 3 != state.size()) return false;
+  std::unordered_map<std::uint64_t, Vec3> mem;
+  for (size_t k = 0; k < M; ++k) {
+    const Real* e = state.data() + B + A + 5 * k;
+    if (!(e[0] >= 0 && e[0] < 2147483648.0 && e[1] >= 0 && e[1] < 4294967296.0) || e[0] != std::floor(e[0]) ||
+        e[1] != std::floor(e[1]) || !std::isfinite(e[2]) || !std::isfinite(e[3]) || !std::isfinite(e[4]))
+      return false;
+    const std::uint64_t key = (static_cast<std::uint64_t>(e[0]) << 32) | static_cast<std::uint64_t>(e[1]);
+    mem.emplace(key, Vec3(e[2], e[3], e[4]));
+  }
+  VecX a(static_cast<Index>(A));
+  for (size_t k = 0; k < A; ++k) {
+    if (!std::isfinite(state[B + k])) return false;
+    a[static_cast<Index>(k)] = state[B + k];
+  }
+  if (!base_.setInternalState(std::vector<Real>(state.begin(), state.begin() + static_cast<std::ptrdiff_t>(B))))
+    return false;
+  pass_.contact_memory_ = std::move(mem);
+  pass_.contact_accel_ = std::move(a);
+  return true;
 }
 
 }  // namespace textile_handling

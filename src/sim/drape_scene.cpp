@@ -121,6 +121,9 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
         !std::isfinite(spec.collision.cell_size_factor) || !(spec.collision.barycentric_tolerance >= 0))
       throw std::invalid_argument("collision: options out of range (see docs/collision.md)");
     scene.self_collision_pass = std::make_unique<SelfCollisionPass>(topology, scene.pins, spec.collision);
+    // Persistent contact: the proximity stage's contact forces enter the next implicit solve, so a
+    // textile resting on itself is a fixed point (docs/collision.md, "Persistent contact").
+    scene.model = withContactForces(std::move(scene.model), *scene.self_collision_pass);
   }
   if (scene.obstacle_pass && scene.self_collision_pass)
     scene.pass_chain = std::make_unique<PostStepPassChain>(
@@ -424,6 +427,20 @@ DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& b
         (std::string(key) == "restitution" ? o.restitution : o.tangential_damping) = v;
       }
       o.cell_size_factor = positive(c, "cell_size_factor", o.cell_size_factor, "collision.");
+      // Proximity stage (persistent contact); ranges are checked by the pass constructor.
+      o.proximity = getBool(c, "proximity", o.proximity, "collision.");
+      o.proximity_propagate = getBool(c, "proximity_propagate", o.proximity_propagate, "collision.");
+      o.proximity_edges = getBool(c, "proximity_edges", o.proximity_edges, "collision.");
+      o.contact_forces = getBool(c, "contact_forces", o.contact_forces, "collision.");
+      o.thickness_factor = positive(c, "thickness_factor", o.thickness_factor, "collision.");
+      o.proximity_search_factor = positive(c, "proximity_search_factor", o.proximity_search_factor, "collision.");
+      o.proximity_friction = c["proximity_friction"] ? getReal(c["proximity_friction"], "collision.proximity_friction")
+                                                     : o.proximity_friction;
+      o.proximity_separation = c["proximity_separation"]
+                                   ? getReal(c["proximity_separation"], "collision.proximity_separation")
+                                   : o.proximity_separation;
+      if (c["proximity_iterations"])
+        o.proximity_iterations = getInt(c["proximity_iterations"], "collision.proximity_iterations");
     }
     if (const YAML::Node ob = root["obstacles"]) {
       if (!ob.IsMap()) throw std::invalid_argument("scene: 'obstacles' must be a map");

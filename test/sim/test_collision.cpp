@@ -9,6 +9,9 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <cstring>
+#include <memory>
+#include <string>
 #include <map>
 #include <random>
 #include <stdexcept>
@@ -156,10 +159,13 @@ Scene creaseFailureScene() {
   return s;
 }
 
+// The failure-case tests exercise the thesis's mechanisms, so v3 runs without the proximity stage
+// (this module's addition in front of the rollback; tested on its own below).
 SelfCollisionOptions versionOptions(SelfCollisionVersion v) {
   SelfCollisionOptions o;
   o.version = v;
   o.d_min = 1e-3;
+  o.proximity = false;
   return o;
 }
 
@@ -429,6 +435,33 @@ TEST(SpatialHash, QueriesReturnEveryOverlappingBoxOnce) {
   }
 }
 
+TEST(SpatialHash, QueryingAboveTheOwnIdFindsEveryOverlappingPairOnce) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<Real> pos(-0.1, 0.1), size(0.0, 0.03);
+  std::vector<geom::Aabb> boxes(400);
+  for (size_t k = 0; k < boxes.size(); ++k) {
+    const Vec3 lo(pos(rng), pos(rng), pos(rng));
+    boxes[k].lo = lo;
+    boxes[k].hi = lo + Vec3(size(rng), k % 40 == 0 ? 1.0 : size(rng), size(rng));  // a few oversized
+  }
+  geom::SpatialHash hash;
+  hash.build(boxes, 0.02);
+  geom::SpatialHash::Query query(hash);
+  std::vector<std::pair<int, int>> got, want;
+  for (int i = 0; i < hash.size(); ++i) {
+    query.forEachOverlapAbove(boxes[static_cast<size_t>(i)], i, [&](int j) {
+      EXPECT_GT(j, i);
+      got.emplace_back(i, j);
+    });
+    for (int j = i + 1; j < hash.size(); ++j)
+      if (boxes[static_cast<size_t>(i)].overlaps(boxes[static_cast<size_t>(j)])) want.emplace_back(i, j);
+  }
+  std::sort(got.begin(), got.end());
+  EXPECT_TRUE(std::adjacent_find(got.begin(), got.end()) == got.end()) << "duplicate pair";
+  EXPECT_TRUE(std::includes(got.begin(), got.end(), want.begin(), want.end()));
+  EXPECT_LE(got.size(), want.size() + 4);
+}
+
 // ---- thesis failure cases ------------------------------------------------------------------------------
 
 TEST(SelfCollisionFailureCases, PointPathVersionMissesTheMovingSurface) {
@@ -479,6 +512,13 @@ TEST(SelfCollisionFailureCases, EdgeVersionMissesTheCrossedNeighbourTriangle) {
   EXPECT_EQ(countIntersectingTrianglePairs(s.tris, v3.x), 0);
   EXPECT_EQ(Vec3(node3(v3.x, s.q)), Vec3(node3(s.x_old, s.q)));
   EXPECT_EQ(countIntersectingTrianglePairs(s.tris, applyPass(s, SelfCollisionOptions::thesisLiteral()).x), 0);
+  // With the proximity stage (default options) q is stopped at the thickness above the flat half
+  // before it crosses (q starts 3 cm above it, within the search radius): nothing to roll back.
+  const Applied vp = applyPass(s, SelfCollisionOptions{});
+  EXPECT_EQ(countIntersectingTrianglePairs(s.tris, vp.x), 0);
+  EXPECT_EQ(vp.stats.thesis_events + vp.stats.fallback_events, 0);
+  EXPECT_GT(vp.stats.proximity_contacts, 0);
+  EXPECT_GT(node3(vp.x, s.q).z(), node3(vp.x, 0).z());
   // v1 handles this one (the path of q crosses the flat triangle): the two versions fail differently.
   const Applied v1 = applyPass(s, versionOptions(SelfCollisionVersion::kPointPath));
   EXPECT_GT(v1.events, 0);
@@ -757,7 +797,10 @@ DrapeOutcome runSquare(bool collisions, SelfCollisionStats* stats = nullptr) {
   const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
   const ClothTriangles tris = ClothTriangles::fromTopology(pm->topology());
   SelfCollisionPass pass(tris, pinnedMask(pm->numNodes(), scene.pins));
-  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  // As a scene does (withContactForces): the contact forces of the proximity stage enter the solve.
+  ContactForceModel model(*scene.model, pass);
+  DrapeSimulation sim(collisions ? static_cast<ClothModel&>(model) : *scene.model, scene.pins, spec.settings, scene.x0,
+                      scene.v0);
   if (collisions) sim.setPostStepPass(&pass);
   const auto t0 = std::chrono::steady_clock::now();
   DrapeOutcome out;
@@ -767,10 +810,10 @@ DrapeOutcome runSquare(bool collisions, SelfCollisionStats* stats = nullptr) {
   out.pairs = countIntersectingTrianglePairs(tris, out.x);
   if (stats) *stats = pass.totalStats();
   std::printf("[ square 25 mm, %s ] %s t=%.2f s, %ld steps, %.2f s wall, %ld intersecting pairs, %ld events, "
-              "collision %.0f ms of %.0f ms stepping\n",
+              "%ld proximity contacts, collision %.0f ms of %.0f ms stepping\n",
               collisions ? "v3" : "no collision handling", out.result.rest_reached ? "rest" : "no rest",
               out.result.sim_time, out.result.steps, out.seconds, out.pairs, out.result.post_step_events,
-              out.result.post_step_ms, out.result.step_ms);
+              pass.totalStats().proximity_contacts, out.result.post_step_ms, out.result.step_ms);
   return out;
 }
 
@@ -787,10 +830,10 @@ TEST(DrapeScenes, SquareHeldAtCentreHangsToRestWithoutIntersectionsUnderV3) {
   ASSERT_FALSE(on.result.diverged) << on.result.divergence_reason;
   EXPECT_TRUE(on.result.rest_reached);
   EXPECT_EQ(on.pairs, 0);
-  EXPECT_GT(on.result.post_step_events, 0);
+  EXPECT_GT(on.result.post_step_events + stats.proximity_contacts, 0);  // the handling was at work
   EXPECT_EQ(stats.unresolved, 0);
-  std::printf("[ square 25 mm, v3 ] thesis rollbacks %ld, fallback rollbacks %ld, passes %d\n", stats.thesis_events,
-              stats.fallback_events, stats.passes);
+  std::printf("[ square 25 mm, v3 ] thesis rollbacks %ld, fallback rollbacks %ld, passes %d, proximity contacts %ld\n",
+              stats.thesis_events, stats.fallback_events, stats.passes, stats.proximity_contacts);
 }
 
 TEST(DrapeScenes, SquareRunIsIndependentOfTheThreadCount) {
@@ -805,7 +848,8 @@ TEST(DrapeScenes, SquareRunIsIndependentOfTheThreadCount) {
     DrapeScene scene = buildDrapeScene(spec);
     const auto* pm = dynamic_cast<const ParticleClothModel*>(scene.model.get());
     SelfCollisionPass pass(ClothTriangles::fromTopology(pm->topology()), pinnedMask(pm->numNodes(), scene.pins));
-    DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+    ContactForceModel model(*scene.model, pass);
+    DrapeSimulation sim(model, scene.pins, spec.settings, scene.x0, scene.v0);
     sim.setPostStepPass(&pass);
     sim.run();
     finals.push_back(sim.positions());
@@ -860,6 +904,340 @@ TEST(DrapeScenes, TableclothOnATableStaysOutOfTheTable) {
   EXPECT_EQ(countIntersectingTrianglePairs(self.triangles(), x), 0);
   std::printf("[ tablecloth 40 mm on a table ] %s t=%.2f s, %ld steps, %.2f s wall, %ld events, lowest z %.3f m\n",
               r.rest_reached ? "rest" : "no rest", r.sim_time, r.steps, secs, r.post_step_events, lowest);
+}
+
+
+// ---- persistent contact: the proximity stage and the contact forces ---------------------------------
+
+bool bitwiseEqual(const VecX& a, const VecX& b) {
+  return a.size() == b.size() && std::equal(a.data(), a.data() + a.size(), b.data(), [](Real p, Real q) {
+           return std::memcmp(&p, &q, sizeof(Real)) == 0;
+         });
+}
+
+// A free 8x8 patch released 8 mm above a 12x12 sheet pinned along its border (d = 2 cm, so the
+// thickness is 5 mm): the patch lands on the sheet and must stay there, on it, at rest.
+struct PatchOnSheet {
+  ParticleTopology topo;
+  PinnedNodes pins;
+  VecX x0;
+  std::vector<Index> upper;  // the free patch
+  Index lower_count = 0;
+};
+
+PatchOnSheet patchOnSheet() {
+  constexpr int L = 12, U = 8;
+  constexpr Real d = 0.02;
+  auto cells = block(0, 0, L, L);
+  const auto up = block(100, 0, U, U);
+  cells.insert(cells.end(), up.begin(), up.end());
+  PatchOnSheet s;
+  s.topo = topologyFromCells(cells, d);
+  s.lower_count = L * L;
+  s.x0.resize(3 * static_cast<Index>(cells.size()));
+  for (size_t k = 0; k < cells.size(); ++k) {
+    const Index p = static_cast<Index>(k);
+    const int i = cells[k][0], j = cells[k][1];
+    if (p < s.lower_count) {
+      node3(s.x0, p) = Vec3(j * d, i * d, 0.0);
+      if (i == 0 || j == 0 || i == L - 1 || j == L - 1) {
+        s.pins.nodes.push_back(p);
+        s.pins.anchors.push_back(Vec3(j * d, i * d, 0.0));
+      }
+    } else {
+      node3(s.x0, p) = Vec3((j + 2.5) * d, (i - 100 + 2.5) * d, 0.008);
+      s.upper.push_back(p);
+    }
+  }
+  return s;
+}
+
+SimulationSettings restSettings(Real max_time) {
+  SimulationSettings st;
+  st.integrator = IntegratorType::kSemiImplicitEuler;
+  st.policy = StepPolicy::kErrorControlled;
+  st.dt = 1e-3;
+  st.dt_max = 0.0125;
+  st.error_tolerance = 1e-3;
+  st.max_time = max_time;
+  return st;
+}
+
+ParticleModelOptions settleOptions() {
+  ParticleModelOptions mo;
+  mo.settle_damping = 4.0;
+  mo.jacobian = JacobianMode::kDefiniteFix;
+  return mo;
+}
+
+Real kinetic(const ClothModel& m, const VecX& v) { return 0.5 * v.cwiseProduct(v).dot(m.massPerDof()); }
+
+TEST(PersistentContact, PatchRestsOnAPinnedSheetAsAFixedPoint) {
+  ThreadGuard guard;
+  setThreads(1);
+  const PatchOnSheet s = patchOnSheet();
+  ParticleClothModel base(s.topo, Material::cotton(), settleOptions());
+  SelfCollisionPass pass(s.topo, s.pins);
+  ContactForceModel model(base, pass);
+  const SimulationSettings st = restSettings(6.0);
+  DrapeSimulation sim(model, s.pins, st, s.x0, VecX::Zero(s.x0.size()));
+  sim.setPostStepPass(&pass);
+  // Energy is bounded: kinetic + potential energy never exceeds the initial total by more than
+  // rounding (the contact handling is dissipative), checked along the way.
+  const Real e0 = base.potentialEnergy(s.x0);
+  Real e_max = e0, ke_max = 0;
+  while (!sim.result().rest_reached && !sim.result().diverged && sim.time() < st.max_time - 1e-9) {
+    sim.run(sim.time() + 0.05);
+    const Real ke = kinetic(base, sim.velocities());
+    ke_max = std::max(ke_max, ke);
+    e_max = std::max(e_max, ke + base.potentialEnergy(sim.positions()));
+  }
+  const RunResult r = sim.result();
+  ASSERT_FALSE(r.diverged) << r.divergence_reason;
+  EXPECT_TRUE(r.rest_reached);
+  EXPECT_LE(e_max, e0 + 1e-6 * std::abs(e0) + 1e-9);
+  const VecX x_rest = sim.positions();
+  EXPECT_EQ(countIntersectingTrianglePairs(pass.triangles(), x_rest), 0);
+  // The patch lies on the sheet (it did not fall through): above the sheet's lowest point.
+  Real sheet_low = 0;
+  for (Index p = 0; p < s.lower_count; ++p) sheet_low = std::min(sheet_low, x_rest[3 * p + 2]);
+  for (Index p : s.upper) EXPECT_GT(x_rest[3 * p + 2], sheet_low);
+  const SelfCollisionStats at_rest = pass.totalStats();
+  EXPECT_GT(at_rest.proximity_contacts, 0);
+  // The rest state is a fixed point: 0.5 s more change nothing (no rollback, no movement), while the
+  // contacts keep carrying the patch.
+  DrapeSimulation more(model, s.pins, restSettings(sim.time() + 0.5), x_rest, sim.velocities());
+  more.setPostStepPass(&pass);
+  const RunResult r2 = more.run();
+  EXPECT_FALSE(r2.diverged);
+  EXPECT_EQ(r2.post_step_events, 0);
+  EXPECT_GT(pass.totalStats().proximity_contacts, at_rest.proximity_contacts);
+  EXPECT_LT((more.positions() - x_rest).cwiseAbs().maxCoeff(), 1e-4);
+  EXPECT_EQ(countIntersectingTrianglePairs(pass.triangles(), more.positions()), 0);
+  std::printf("[ patch on a pinned sheet ] rest t=%.2f s, %ld steps, %ld rollbacks, %ld proximity contacts, max "
+              "kinetic energy %.2e J; 0.5 s more: max displacement %.1e m\n",
+              r.sim_time, r.steps, r.post_step_events, at_rest.proximity_contacts, ke_max,
+              (more.positions() - x_rest).cwiseAbs().maxCoeff());
+}
+
+TEST(PersistentContact, ContactForcesSurviveSaveAndResume) {
+  ThreadGuard guard;
+  setThreads(1);
+  const PatchOnSheet s = patchOnSheet();
+  const std::string path = ::testing::TempDir() + "collision_contact_resume.txt";
+  const SimulationSettings st = restSettings(10.0);
+  ParticleClothModel base_a(s.topo, Material::cotton(), settleOptions());
+  SelfCollisionPass pass_a(s.topo, s.pins);
+  ContactForceModel model_a(base_a, pass_a);
+  DrapeSimulation a(model_a, s.pins, st, s.x0, VecX::Zero(s.x0.size()));
+  a.setPostStepPass(&pass_a);
+  a.run(0.3);
+  ASSERT_GT(pass_a.contactAccelerations().size(), 0);  // contacts carry the patch at the save
+  a.save(path);
+  a.run(0.6);
+  ParticleClothModel base_b(s.topo, Material::cotton(), settleOptions());
+  SelfCollisionPass pass_b(s.topo, s.pins);
+  ContactForceModel model_b(base_b, pass_b);
+  DrapeSimulation b(model_b, s.pins, st, s.x0, VecX::Zero(s.x0.size()));
+  b.setPostStepPass(&pass_b);
+  b.load(path);
+  b.run(0.6);
+  std::remove(path.c_str());
+  EXPECT_TRUE(bitwiseEqual(a.positions(), b.positions()))
+      << "max difference " << (a.positions() - b.positions()).cwiseAbs().maxCoeff();
+  EXPECT_TRUE(bitwiseEqual(a.velocities(), b.velocities()));
+  EXPECT_EQ(a.result().steps, b.result().steps);
+  // A malformed contact state is rejected.
+  std::vector<Real> bad = model_b.internalState();
+  bad.back() += 1;
+  EXPECT_FALSE(model_b.setInternalState(bad));
+}
+
+// The README's demo scene at half the resolution: the towel held at a corner reaches rest without
+// intersections under v3 (it used to be pumped by rollbacks in persistent contact and never rested).
+TEST(PersistentContact, TowelHeldAtACornerRestsWithoutIntersectionsAtTwoCentimetres) {
+  ThreadGuard guard;
+  setThreads(1);
+  const DrapeSceneSpec spec = parseDrapeSceneYaml(R"(
+textile: towel
+material: cotton
+spacing_m: 0.02
+hold:
+  points: [corner_ul]
+  position: [0.0, 0.0, 1.0]
+model:
+  name: particle_kes
+  jacobian: definite_fix
+  settle_damping_per_s: 4.0
+simulation:
+  integrator: semi_implicit
+  policy: error
+  dt_s: 0.001
+  dt_max_s: 0.0125
+  error_tolerance_m: 0.001
+  max_time_s: 10.0
+  linear_solver: cg
+  preconditioner: two_level
+  cg_tolerance: 0.03
+  cg_warm_start: true
+collision:
+  self: v3
+)");
+  DrapeScene scene = buildDrapeScene(spec);
+  ASSERT_TRUE(scene.self_collision_pass);
+  SelfCollisionPass& pass = *scene.self_collision_pass;
+  scene.model = withContactForces(std::move(scene.model), pass);  // idempotent
+  ASSERT_TRUE(dynamic_cast<ContactForceModel*>(scene.model.get()));
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  sim.setPostStepPass(scene.postStepPass());
+  const RunResult r = sim.run();
+  ASSERT_FALSE(r.diverged) << r.divergence_reason;
+  EXPECT_TRUE(r.rest_reached);
+  EXPECT_EQ(countIntersectingTrianglePairs(scene.triangles(), sim.positions()), 0);
+  const SelfCollisionStats& t = pass.totalStats();
+  EXPECT_EQ(t.unresolved, 0);
+  EXPECT_GT(t.proximity_contacts, 0);
+  std::printf("[ towel 20 mm, corner, v3 ] %s t=%.2f s, %ld steps (%ld rejected), %ld rollbacks, %ld proximity "
+              "contacts, collision %.2f ms/step, assembly %.2f ms/step\n",
+              r.rest_reached ? "rest" : "no rest", r.sim_time, r.steps, r.rejected_steps, r.post_step_events,
+              t.proximity_contacts, r.post_step_ms / std::max<long>(r.steps, 1),
+              r.assembly_ms / std::max<long>(r.steps, 1));
+}
+
+// Two 40x40 sheets 3 mm apart (d = 1 cm, thickness 2.5 mm), one step that brings them together:
+// more than 2048 triangles, so that the parallel loops run. The result does not depend on the
+// thread count, nothing crosses, and pinned particles are neither moved nor slowed.
+struct TwoSheets {
+  ParticleTopology topo;
+  std::vector<char> pinned;
+  PinnedNodes pins;
+  VecX x_old, x, v;
+};
+
+TwoSheets twoSheets() {
+  constexpr int N = 40;
+  constexpr Real d = 0.01, h = 0.01;
+  auto cells = block(0, 0, N, N);
+  const auto b = block(100, 0, N, N);
+  cells.insert(cells.end(), b.begin(), b.end());
+  TwoSheets s;
+  s.topo = topologyFromCells(cells, d);
+  const Index n = static_cast<Index>(cells.size());
+  s.pinned.assign(static_cast<size_t>(n), 0);
+  s.x_old.resize(3 * n);
+  std::mt19937 rng(5);
+  std::normal_distribution<Real> noise(0, 4e-4);
+  s.x = s.x_old;
+  for (Index p = 0; p < n; ++p) {
+    const int i = cells[static_cast<size_t>(p)][0], j = cells[static_cast<size_t>(p)][1];
+    const bool top = i >= 100;
+    node3(s.x_old, p) = top ? Vec3((j + 0.5) * d, (i - 100 + 0.5) * d, 0.003) : Vec3(j * d, i * d, 0.0);
+    Vec3 step(noise(rng), noise(rng), noise(rng));
+    if (top) step.z() -= 0.002;
+    if (!top && p % 7 == 0) {  // pinned: moves by prescription
+      s.pinned[static_cast<size_t>(p)] = 1;
+      s.pins.nodes.push_back(p);
+      s.pins.anchors.push_back(node3(s.x_old, p));
+    }
+    node3(s.x, p) = node3(s.x_old, p) + step;
+  }
+  s.v = (s.x - s.x_old) / h;
+  return s;
+}
+
+TEST(PersistentContact, ProximityStageIsThreadIndependentAndLeavesPinnedParticles) {
+  ThreadGuard guard;
+  const TwoSheets s = twoSheets();
+  ASSERT_GT(ClothTriangles::fromTopology(s.topo).numTriangles(), 2 * 2048);
+  std::vector<VecX> xs, vs, as;
+  for (int threads : {1, 2, 4}) {
+    setThreads(threads);
+    ParticleClothModel base(s.topo, Material::cotton(), settleOptions());
+    SelfCollisionPass pass(s.topo, s.pins);
+    ContactForceModel model(base, pass);  // contact forces on: their memory is part of the result
+    VecX x = s.x, v = s.v;
+    pass.apply(s.x_old, x, v);
+    const SelfCollisionStats& st = pass.lastStats();
+    EXPECT_GT(st.proximity_contacts, 100);
+    EXPECT_EQ(st.unresolved, 0);
+    EXPECT_EQ(countIntersectingTrianglePairs(pass.triangles(), x), 0);
+    for (Index p = 0; p < static_cast<Index>(s.pinned.size()); ++p)
+      if (s.pinned[static_cast<size_t>(p)]) {
+        EXPECT_EQ(Vec3(node3(x, p)), Vec3(node3(s.x, p)));
+        EXPECT_EQ(Vec3(node3(v, p)), Vec3(node3(s.v, p)));
+      }
+    // Pinned particles take no contact force.
+    const VecX& a = pass.contactAccelerations();
+    ASSERT_EQ(a.size(), s.x.size());
+    for (Index p = 0; p < base.numNodes(); ++p) {
+      if (s.pinned[static_cast<size_t>(p)]) {
+        EXPECT_EQ(Vec3(node3(a, p)), Vec3::Zero());
+      }
+    }
+    xs.push_back(x);
+    vs.push_back(v);
+    as.push_back(a);
+  }
+  for (size_t k = 1; k < xs.size(); ++k) {
+    EXPECT_TRUE(bitwiseEqual(xs[k], xs[0]));
+    EXPECT_TRUE(bitwiseEqual(vs[k], vs[0]));
+    EXPECT_TRUE(bitwiseEqual(as[k], as[0]));
+  }
+  // Without pins the corrections and the contact forces conserve momentum.
+  setThreads(1);
+  ParticleClothModel base(s.topo, Material::cotton(), settleOptions());
+  SelfCollisionPass pass(s.topo, PinnedNodes{});
+  ContactForceModel model(base, pass);
+  VecX x = s.x, v = s.v;
+  pass.apply(s.x_old, x, v);
+  const VecX& m = base.massPerDof();
+  const VecX& a = pass.contactAccelerations();
+  ASSERT_EQ(a.size(), s.x.size());
+  Vec3 p_force = Vec3::Zero(), p_move = Vec3::Zero(), p_vel = Vec3::Zero();
+  Real scale = 0;
+  for (Index p = 0; p < base.numNodes(); ++p) {
+    p_force += m[3 * p] * Vec3(node3(a, p));
+    p_move += m[3 * p] * Vec3(node3(x, p) - node3(s.x, p));
+    p_vel += m[3 * p] * Vec3(node3(v, p) - node3(s.v, p));
+    scale += m[3 * p] * Vec3(node3(a, p)).norm();
+  }
+  EXPECT_GT(scale, 0);
+  EXPECT_LT(p_force.norm(), 1e-12 * scale);
+  EXPECT_LT(p_move.norm(), 1e-15);
+  EXPECT_LT(p_vel.norm(), 1e-13);
+}
+
+TEST(PersistentContact, OptionsAndTheContactForceModel) {
+  EXPECT_FALSE(SelfCollisionOptions::thesisLiteral().proximity);
+  const PatchOnSheet s = patchOnSheet();
+  SelfCollisionOptions bad;
+  bad.thickness_factor = 0.4;  // the candidate lists would reach non-adjacent neighbours of a flat sheet
+  EXPECT_THROW(SelfCollisionPass(s.topo, s.pins, bad), std::invalid_argument);
+  bad = SelfCollisionOptions{};
+  bad.proximity_iterations = 0;
+  EXPECT_THROW(SelfCollisionPass(s.topo, s.pins, bad), std::invalid_argument);
+  // withContactForces wraps only for v3 with the proximity stage and contact forces, and once.
+  SelfCollisionOptions off;
+  off.contact_forces = false;
+  SelfCollisionPass pass_off(s.topo, s.pins, off);
+  auto m0 = withContactForces(std::make_unique<ParticleClothModel>(s.topo, Material::cotton()), pass_off);
+  EXPECT_FALSE(dynamic_cast<ContactForceModel*>(m0.get()));
+  SelfCollisionPass pass(s.topo, s.pins);
+  auto m1 = withContactForces(std::make_unique<ParticleClothModel>(s.topo, Material::cotton()), pass);
+  ASSERT_TRUE(dynamic_cast<ContactForceModel*>(m1.get()));
+  ClothModel* before = m1.get();
+  m1 = withContactForces(std::move(m1), pass);
+  EXPECT_EQ(m1.get(), before);
+  // Without contacts the wrapper is transparent: same forces, energy and state as the bare model.
+  ParticleClothModel bare(s.topo, Material::cotton());
+  VecX f_bare(s.x0.size()), f_wrap(s.x0.size());
+  const VecX v0 = VecX::Zero(s.x0.size());
+  bare.computeForces(s.x0, v0, f_bare, nullptr);
+  m1->computeForces(s.x0, v0, f_wrap, nullptr);
+  EXPECT_TRUE(bitwiseEqual(f_bare, f_wrap));
+  EXPECT_EQ(m1->potentialEnergy(s.x0), bare.potentialEnergy(s.x0));
+  EXPECT_EQ(m1->name(), bare.name());
+  EXPECT_TRUE(m1->setInternalState(m1->internalState()));
 }
 
 }  // namespace

@@ -5,7 +5,10 @@
 //  - ClothTriangles: the thesis triangulation of the particle grid (each particle p0 owns the
 //    triangles (p0, right, up) and (p0, left, down)), its edges and adjacency;
 //  - SelfCollisionPass: the three versions of the thesis (v1 point path, v2 edge test, v3 edge test
-//    with candidate set and rollback), with a spatial-hash broad phase;
+//    with candidate set and rollback), with a spatial-hash broad phase; v3 adds a proximity stage
+//    that keeps resting cloth-on-cloth contact at a thickness (persistent contact);
+//  - ContactForceModel / withContactForces(): feed the proximity stage's contact forces into the
+//    implicit solve, which makes resting contact a fixed point;
 //  - ObstaclePass: planes, boxes and spheres with a contact distance and Coulomb-like friction;
 //  - PostStepPassChain: runs several passes in order and sums their event counts;
 //  - countIntersectingTrianglePairs(): an independent exact checker (Devillers-Guigue).
@@ -14,6 +17,9 @@
 #pragma once
 
 #include <array>
+#include <memory>
+#include <cstdint>
+#include <unordered_map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -48,6 +54,9 @@ struct ClothTriangles {
   /// Version-3 candidate set of each particle p0 (CSR; ascending ids): every triangle that shares a
   /// vertex with one of p0's two triangles (p0's own triangles included). Empty when p0 owns none.
   std::vector<Index> candidate_start, candidate_list;
+  /// Mass of each particle, relative (the area it represents: the cloth is uniform). Weights the
+  /// momentum-conserving impulses of the proximity stage; empty = equal masses.
+  std::vector<Real> vertex_mass;
 
   Index numTriangles() const { return static_cast<Index>(triangles.size()); }
   Index numEdges() const { return static_cast<Index>(edges.size()); }
@@ -129,8 +138,46 @@ struct SelfCollisionOptions {
   /// Fraction of the tangential (relative) velocity removed at a collision (kThesis, kRelative,
   /// v1/v2): 0 = the thesis (v_par kept).
   Real tangential_damping = 0.0;
-  /// Broad-phase cell size as a multiple of the grid spacing d (1.5 was fastest on the 1 cm towel).
-  Real cell_size_factor = 1.5;
+  /// Broad-phase cell size as a multiple of the grid spacing d (v3 hashes grid cells, i.e. pairs of
+  /// triangles, with boxes inflated by the candidate-list radius: 3 was fastest on the 1 cm towel).
+  Real cell_size_factor = 3.0;
+
+  // ---- v3 proximity stage (this module's addition; docs/collision.md, "Persistent contact").
+  // Runs before the crossing detection of v3: every vertex-triangle and edge-edge pair of
+  // non-adjacent features closer than 1.5 T (proximity_search_factor) at x_old whose step would
+  // bring it closer than the thickness T is projected back to the thickness with a
+  // momentum-conserving inelastic correction (Bridson, Fedkiw & Anderson 2002, in positions as in
+  // position-based dynamics) with Coulomb friction, the velocities following the corrected step.
+  // The rollback stays as the fail-safe for whatever still crosses. With a ContactForceModel the
+  // contact forces also enter the next implicit solve, which makes resting contact a fixed point.
+  /// Off = v3 exactly as before (rollback only).
+  bool proximity = true;
+  /// Cloth thickness T as a multiple of the grid spacing d (T = thickness_factor d), in (0, 0.35).
+  /// The default keeps the candidate lists (2 T) below the 0.707 d of non-adjacent features in a
+  /// flat sheet.
+  Real thickness_factor = 0.25;
+  /// Fraction of the thickness deficit (T - gap) restored per step for pairs already closer than T
+  /// (0 = purely inelastic, the gap is only kept).
+  Real proximity_separation = 0.1;
+  /// Coulomb friction coefficient mu of cloth on cloth (sticking while the tangential force stays
+  /// within mu times the normal force).
+  Real proximity_friction = 0.3;
+  /// Search radius of the stage in thicknesses: pairs closer than this at x_old are tested, so an
+  /// approach of up to (factor - 1) T per step is stopped at the thickness (faster ones are left to
+  /// the rollback). In [1, 3]; larger finds more contacts early at a higher cost (docs).
+  Real proximity_search_factor = 1.5;
+  /// Gauss-Seidel sweeps over the contacts (and the grid edges around them) per step.
+  int proximity_iterations = 8;
+  /// After each sweep over the contacts, restore the grid edges around the moved particles to their
+  /// lengths after the step (Provot 1995 style), so that a contact moves the patch the integrator
+  /// moved as one instead of straining the stiff tension springs.
+  bool proximity_propagate = true;
+  /// Also edge-edge pairs (crossing edges of two layers; pairs of two cell diagonals excepted), not
+  /// only vertex-triangle pairs.
+  bool proximity_edges = true;
+  /// Whether a scene wraps its model in a ContactForceModel (see withContactForces()), so that the
+  /// contact forces enter the implicit solve. The pass itself only needs the wrapper to exist.
+  bool contact_forces = true;
 
   /// Version 3 exactly as the thesis describes it, without this module's additions: grid edges only,
   /// no point-in-triangle check, no fallback rollback, the thesis's velocity reflection (e = 1).
@@ -142,6 +189,7 @@ struct SelfCollisionOptions {
     o.response = CollisionResponse::kThesis;
     o.restitution = 1.0;
     o.tangential_damping = 0.0;
+    o.proximity = false;
     return o;
   }
 };
@@ -155,6 +203,12 @@ struct SelfCollisionStats {
   int passes = 0;             ///< detection passes that found something to handle
   long unresolved = 0;        ///< crossings still present when apply() returned (cap or unresolvable)
   long point_test_rejections = 0;  ///< v3: side changes discarded by the point-in-triangle check
+  long proximity_pairs = 0;     ///< proximity stage: close pairs found (vertex-triangle + edge-edge)
+  long proximity_contacts = 0;  ///< proximity stage: pairs whose approach was corrected (contacts)
+  long proximity_edge_projections = 0;  ///< proximity stage: grid-edge length restorations
+  double proximity_ms = 0;         ///< proximity stage in all (detection, resolution, box refresh)
+  double proximity_detect_ms = 0;  ///< of which the detection of close pairs
+  long candidate_list_builds = 0;  ///< broad-phase candidate lists built (v3: reused while valid)
   double broad_ms = 0;        ///< building boxes and the hash
   double detect_ms = 0;       ///< candidate detection (parallel)
   double resolve_ms = 0;      ///< resolution (sequential, fixed order)
@@ -172,11 +226,23 @@ class SelfCollisionPass : public PostStepPass {
   long apply(const VecX& x_old, VecX& x, VecX& v) override;
 
   const SelfCollisionOptions& options() const { return options_; }
-  void setOptions(const SelfCollisionOptions& o) { options_ = o; }
+  void setOptions(const SelfCollisionOptions& o) {
+    options_ = o;
+    list_valid_ = false;
+  }
   const ClothTriangles& triangles() const { return tris_; }
   const SelfCollisionStats& lastStats() const { return last_; }
   const SelfCollisionStats& totalStats() const { return total_; }
   long calls() const { return calls_; }
+  /// Contact forces of the last step as accelerations per DOF [m/s^2] (force = particle mass x
+  /// acceleration; they sum to zero momentum); empty when there are none or no ContactForceModel
+  /// uses them.
+  const VecX& contactAccelerations() const { return contact_accel_; }
+  /// Forgets the contact forces of the last step.
+  void resetContactForces() {
+    contact_memory_.clear();
+    contact_accel_.resize(0);
+  }
   void resetStats() {
     total_ = SelfCollisionStats{};
     calls_ = 0;
@@ -191,6 +257,13 @@ class SelfCollisionPass : public PostStepPass {
   };
 
   void buildHash(const VecX& x_old, const VecX& x, Real inflate);
+  // Recomputes the swept triangle boxes for the current x without rebuilding the hash; its stored
+  // boxes are then stale by at most `stale` (queries are inflated by that much).
+  void refreshBoxes(const VecX& x_old, const VecX& x, Real stale);
+  geom::Aabb queryBox(geom::Aabb b) const {
+    if (query_inflate_ > 0) b.inflate(query_inflate_);
+    return b;
+  }
   void computeEdgeBoxes(const VecX& x_old, const VecX& x);
   geom::Aabb edgeBox(Index e, const VecX& x_old, const VecX& x) const;
   bool edgeCrosses(Index e, Index t, const VecX& x) const;
@@ -212,6 +285,36 @@ class SelfCollisionPass : public PostStepPass {
   void reflect(Index p, const Vec3& n, VecX& v) const;
   // Velocity response of a collision between group a (moving along +n) and group b (along -n).
   void respond(const Index* a, int na, const Index* b, int nb, const Vec3& n, VecX& v) const;
+  // Proximity stage (docs/collision.md, "Persistent contact").
+  struct ProxPair {
+    int type;       // 0: vertex a - triangle b; 1: edge a - edge b (a < b)
+    Index a, b;
+    Index idx[4];   // particles: the a side first
+    Real w[4];      // relative-displacement weights: +weights on the a side, -weights on the b side
+    Vec3 n;         // unit normal at x_old, from the b side toward the a side
+    Real gap;       // distance along n at x_old (> 0)
+    bool operator<(const ProxPair& o) const {
+      return type != o.type ? type < o.type : (a != o.a ? a < o.a : b < o.b);
+    }
+  };
+  void detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const;
+  void buildProximityCache(const VecX& x_old, Real radius);
+  // Proximity search radius R = proximity_search_factor T, and the radius Rv of the candidate
+  // lists: R plus a margin of T / 2 (lists stay valid while particles move less than T / 4).
+  Real proximitySearchRadius(Real thickness) const { return options_.proximity_search_factor * thickness; }
+  Real proximityListRadius(Real thickness) const { return (options_.proximity_search_factor + 0.5) * thickness; }
+  // All pairs of triangles whose stored boxes overlap (into cand_), and the first crossing
+  // detection of a pass from them.
+  void collectCandidates(const VecX& x_old, const VecX& x, Real inflate);
+  void detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const;
+  long resolveProximity(const std::vector<ProxPair>& pairs, Real thickness, const VecX& x_old, const VecX& x_pred,
+                        VecX& x, VecX& v, SelfCollisionStats& st);
+  // Step size h of the last step when x = x_old + h v holds (implicit integrators), else -1.
+  Real estimateStep(const VecX& x_old, const VecX& x_pred, const VecX& v) const;
+  static std::uint64_t pairKey(const ProxPair& p) {
+    return (static_cast<std::uint64_t>(p.type) << 62) | (static_cast<std::uint64_t>(p.a) << 31) |
+           static_cast<std::uint64_t>(p.b);
+  }
 
   ClothTriangles tris_;
   std::vector<char> pinned_;
@@ -219,16 +322,83 @@ class SelfCollisionPass : public PostStepPass {
   geom::SpatialHash hash_;
   std::vector<geom::Aabb> boxes_;       // swept triangle boxes of the current apply()
   std::vector<geom::Aabb> edge_boxes_;  // swept edge boxes of the current apply()
+  Real query_inflate_ = 0;              // how far the hash's stored boxes may be stale
+  std::vector<std::array<Index, 2>> groups_;  // broad-phase cells: 1 or 2 triangles (-1: none)
+  std::vector<geom::Aabb> group_boxes_;
+  geom::SpatialHash group_hash_;
+  std::vector<std::pair<Index, Index>> cand_;  // triangle pairs with overlapping stored boxes (a < b)
+  // Triangles sharing a vertex, by topology: the edge-triangle pairs that can cross, and the
+  // vertex-triangle and edge-edge pairs of the proximity stage (no shared vertex).
+  std::vector<std::pair<Index, Index>> adj_cross_, adj_vt_, adj_ee_;
   std::vector<Index> owned_start_, owned_list_;  // edges owned by each triangle (CSR)
   std::vector<Index> orphan_edges_;     // edges that belong to no triangle
   std::vector<Index> edge_owner_;       // triangle owning each edge, -1 for orphans
   std::vector<Index> vertex_edge_start_, vertex_edge_list_;  // edges incident to each vertex (CSR)
+  std::vector<Index> owned_vertex_start_, owned_vertex_list_;  // vertices owned by each triangle (CSR)
+  std::vector<Real> inv_mass_;          // relative inverse masses, 0 for pinned particles
+  // Contact-force feedback (ContactForceModel): the contact multipliers of the last step as
+  // accelerations, per pair (by key) and summed per particle.
+  bool force_feedback_ = false;
+  Real last_h_ = -1;  // step size of the last step it could be estimated for
+  // Proximity candidate list (Verlet list): vertex-triangle and edge-edge pairs within the list
+  // radius at the positions prox_cache_x_.
+  std::vector<std::pair<Index, Index>> prox_cache_vt_, prox_cache_ee_;
+  // Validity of the candidate lists (cand_, prox_cache_*): positions x_old at the build, the swept
+  // box of every particle at the build (per DOF), radius and settings.
+  VecX list_old_;
+  std::vector<Real> list_lo_, list_hi_;
+  Real list_radius_ = 0;
+  bool list_edges_ = true;
+  bool list_valid_ = false;
+  bool hash_current_ = false;           // hash_ holds this apply()'s boxes
+  std::unordered_map<std::uint64_t, Vec3> contact_memory_;
+  VecX contact_accel_;
+  friend class ContactForceModel;
   // Scratch marks of detectIncremental (epoch-stamped, so no O(n) clearing per pass).
   mutable std::vector<std::uint32_t> tri_mark_, work_mark_, edge_mark_;
   mutable std::uint32_t epoch_ = 0;
   SelfCollisionStats last_, total_;
   long calls_ = 0;
 };
+
+/// A cloth model that adds the contact forces of a SelfCollisionPass's proximity stage (the
+/// multipliers of its last step, as forces) to the forces of another model, so that the implicit
+/// solve of the next step sees the support the contacts give (docs/collision.md, "Persistent
+/// contact"): without them every step lets the supported cloth sag and the pass pushes it back,
+/// which at rest never stops. Everything else is forwarded. Creating one switches the pass to
+/// contact-force feedback; the pass must stay alive as long as this model is used. The contact
+/// forces are part of internalState(), so save/resume continues exactly.
+class ContactForceModel : public ClothModel {
+ public:
+  ContactForceModel(std::unique_ptr<ClothModel> base, SelfCollisionPass& pass);
+  ContactForceModel(ClothModel& base, SelfCollisionPass& pass);
+
+  ClothModel& base() { return base_; }
+  const ClothModel& base() const { return base_; }
+  const SelfCollisionPass& pass() const { return pass_; }
+  std::string name() const override { return base_.name(); }
+  Index numNodes() const override { return base_.numNodes(); }
+  int dofsPerNode() const override { return base_.dofsPerNode(); }
+  const VecX& massPerDof() const override { return base_.massPerDof(); }
+  const BlockPattern& jacobianPattern() const override { return base_.jacobianPattern(); }
+  ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
+  Real potentialEnergy(const VecX& x) const override { return base_.potentialEnergy(x); }
+  Vec3 nodePosition(const VecX& x, Index node) const override { return base_.nodePosition(x, node); }
+  Real maxEdgeStretch(const VecX& x) const override { return base_.maxEdgeStretch(x); }
+  void acceptStep(const VecX& x, const VecX& v) override { base_.acceptStep(x, v); }
+  std::vector<Real> internalState() const override;
+  bool setInternalState(const std::vector<Real>& state) override;
+
+ private:
+  std::unique_ptr<ClothModel> owned_;
+  ClothModel& base_;
+  SelfCollisionPass& pass_;
+};
+
+/// Wraps `model` in a ContactForceModel when the pass runs v3 with the proximity stage and
+/// options().contact_forces (what a scene does), else returns it unchanged. `pass` must outlive the
+/// returned model.
+std::unique_ptr<ClothModel> withContactForces(std::unique_ptr<ClothModel> model, SelfCollisionPass& pass);
 
 // ---- obstacles -----------------------------------------------------------------------------------
 

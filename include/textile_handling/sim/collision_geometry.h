@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -88,7 +89,14 @@ class SpatialHash {
     /// Calls f(id) once for every stored box that overlaps `box` (closed overlap), and possibly for
     /// boxes that miss it by less than the float rounding of the coordinates (conservative).
     template <class F>
-    void forEachOverlap(const Aabb& box, F&& f);
+    void forEachOverlap(const Aabb& box, F&& f) {
+      forEachOverlapAbove(box, -1, std::forward<F>(f));
+    }
+    /// The same, restricted to the stored boxes with an id greater than `min_id` (entries are kept in
+    /// id order within a bucket, so the others are skipped by a binary search): one query per box
+    /// with its own id finds every overlapping pair once.
+    template <class F>
+    void forEachOverlapAbove(const Aabb& box, int min_id, F&& f);
 
    private:
     const SpatialHash& hash_;
@@ -140,7 +148,7 @@ class SpatialHash {
 };
 
 template <class F>
-void SpatialHash::Query::forEachOverlap(const Aabb& q, F&& f) {
+void SpatialHash::Query::forEachOverlapAbove(const Aabb& q, int min_id, F&& f) {
   const SpatialHash& h = hash_;
   if (h.size() == 0) return;
   if (++epoch_ == 0) {  // wrapped around: clear the marks
@@ -156,7 +164,7 @@ void SpatialHash::Query::forEachOverlap(const Aabb& q, F&& f) {
   const Cell lo = h.cellOf(q.lo), hi = h.cellOf(q.hi);
   if (!finiteBox(q) || !spanOk(lo, hi)) {
     // A huge query: a linear scan is cheaper than visiting its cells.
-    for (int i = 0; i < h.size(); ++i)
+    for (int i = min_id + 1; i < h.size(); ++i)
       if (h.box(i).overlaps(q)) report(i);
     return;
   }
@@ -166,7 +174,14 @@ void SpatialHash::Query::forEachOverlap(const Aabb& q, F&& f) {
     for (std::int64_t y = lo[1]; y <= hi[1]; ++y)
       for (std::int64_t z = lo[2]; z <= hi[2]; ++z) {
         const size_t b = h.bucketOf(x, y, z);
-        for (std::uint32_t k = h.start_[b]; k < h.start_[b + 1]; ++k) {
+        std::uint32_t k0 = h.start_[b];
+        const std::uint32_t k1 = h.start_[b + 1];
+        if (min_id >= 0)
+          k0 = static_cast<std::uint32_t>(
+              std::upper_bound(h.entries_.begin() + k0, h.entries_.begin() + k1, min_id,
+                               [](int id, const Entry& e) { return id < e.id; }) -
+              h.entries_.begin());
+        for (std::uint32_t k = k0; k < k1; ++k) {
           const Entry& e = h.entries_[k];
           // Float test on boxes rounded outward: never misses an overlap.
           if (e.lo[0] > qhi[0] || e.hi[0] < qlo[0] || e.lo[1] > qhi[1] || e.hi[1] < qlo[1] || e.lo[2] > qhi[2] ||
@@ -176,7 +191,7 @@ void SpatialHash::Query::forEachOverlap(const Aabb& q, F&& f) {
         }
       }
   for (int id : h.oversized_)
-    if (h.box(id).overlaps(q)) report(id);
+    if (id > min_id && h.box(id).overlaps(q)) report(id);
 }
 
 }  // namespace geom
