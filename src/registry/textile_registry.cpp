@@ -253,11 +253,15 @@ QueuedBuild TextileRegistry::enqueue(Job job) {
   e.state = "queued";
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
+    e.jobs_queued = static_cast<int>(jobs_.size()) + (running_job_ ? 1 : 0);
+  }
+  // "queued" goes out before the worker can see the job, so it always precedes "running".
+  emit(e);
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
     jobs_.push_back(std::move(job));
-    e.jobs_queued = static_cast<int>(jobs_.size()) - 1 + (running_job_ ? 1 : 0);
   }
   queue_cv_.notify_all();
-  emit(e);
   return q;
 }
 
