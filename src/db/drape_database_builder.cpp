@@ -109,7 +109,51 @@ ParticleModelOptions DrapeBuildConfig::defaultModelOptions() {
   return o;
 }
 
-std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c) {
+std::vector<std::string> DrapeDatabaseBuilder::parameterTexts(const DrapeBuildConfig& c) {
+  if (!c.bracket_hold_points) return {parametersText(c)};
+  std::vector<std::string> out;
+  for (int k = 0; k < 4; ++k) out.push_back(parametersText(c, k));
+  return out;
+}
+
+std::optional<Vec2> DrapeDatabaseBuilder::bracketHold(const ParticleGrid& grid, const Vec2& hold, int corner) {
+  if (corner < 0) return hold;
+  if (corner > 3 || grid.empty()) return std::nullopt;
+  const Real d = grid.spacing();
+  const Real fx = (hold.x() - grid.origin().x()) / d, fy = (hold.y() - grid.origin().y()) / d;
+  const Index j0 = static_cast<Index>(std::floor(fx + 1e-9)), i0 = static_cast<Index>(std::floor(fy + 1e-9));
+  const bool on_col = std::abs(fx - std::round(fx)) < 1e-9, on_row = std::abs(fy - std::round(fy)) < 1e-9;
+  const bool up_x = corner & 1, up_y = corner & 2;
+  if ((up_x && on_col) || (up_y && on_row)) return std::nullopt;  // the same particle as a lower corner
+  const Index j = up_x ? j0 + 1 : static_cast<Index>(on_col ? std::llround(fx) : j0);
+  const Index i = up_y ? i0 + 1 : static_cast<Index>(on_row ? std::llround(fy) : i0);
+  if (i < 0 || j < 0 || i >= grid.rows() || j >= grid.cols() || !grid.active(i, j)) return std::nullopt;
+  return grid.node(i, j);
+}
+
+std::vector<PlannedHoldPoint> DrapeDatabaseBuilder::passPlan(int corner) const {
+  if (corner < 0) return plan_;
+  std::vector<Vec2> pts;
+  for (const Vec2& p : canonical_)
+    if (bracketHold(grid_, p, corner)) pts.push_back(p);
+  if (pts.empty()) return {};
+  std::vector<PlannedHoldPoint> plan = planHoldPoints(pts, symmetry_);
+  if (!symmetric_grid_)
+    for (auto& h : plan) {
+      h.mirror = MirrorKind::kIdentity;
+      h.source = static_cast<int>(&h - plan.data());
+    }
+  if (symmetric_grid_) return plan;
+  // Without mirroring every point is simulated at its own corner particle: drop the points (mirror
+  // images) for which that corner does not exist.
+  std::vector<PlannedHoldPoint> kept;
+  for (const auto& h : plan)
+    if (bracketHold(grid_, h.position, corner)) kept.push_back(h);
+  for (auto& h : kept) h.source = static_cast<int>(&h - kept.data());
+  return kept;
+}
+
+std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int bracket_corner) {
   std::string t = "format: 1\nmodel: " + c.model + "\n";
   t += "integrator: " + toString(c.settings.integrator) + "\n";
   t += "policy: " + toString(c.settings.policy) + "\n";
@@ -131,6 +175,7 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c) {
     if (c.projection.type == vision::ProjectionType::kOrthographic && name.rfind("projection.", 0) == 0) continue;
     t += name + ": " + fmt(value) + "\n";
   }
+  if (bracket_corner >= 0) t += "hold_bracket: " + std::to_string(bracket_corner) + "\n";
   return t;
 }
 
@@ -243,6 +288,7 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
     throw InvalidInputError(std::string("build: hold points: ") + e.what());
   }
   if (canonical.empty()) throw InvalidInputError("build: no hold points");
+  canonical_ = canonical;
   plan_ = planHoldPoints(canonical, symmetry_);
 
   // The scene of the first hold point checks the remaining settings (model, solver, time steps).
@@ -252,6 +298,7 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
     symmetric_grid_ = symmetry_.any();
     for (MirrorKind m : symmetry_.mirrors())
       if (mirrorPermutation(scene.grid, symmetry_, m).empty()) symmetric_grid_ = false;
+    grid_ = scene.grid;
   } catch (const std::invalid_argument& e) {
     throw InvalidInputError(std::string("build: ") + e.what());
   }
@@ -263,6 +310,31 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
 }
 
 DrapeBuildReport DrapeDatabaseBuilder::build() {
+  if (!config_.bracket_hold_points) return buildPass(-1, plan_);
+  const auto t0 = Clock::now();
+  DrapeBuildReport total;
+  total.symmetry = symmetry_.name();
+  total.symmetric_grid = symmetric_grid_;
+  for (int corner = 0; corner < 4; ++corner) {
+    if (config_.should_stop && config_.should_stop()) break;
+    const std::vector<PlannedHoldPoint> plan = passPlan(corner);
+    if (plan.empty()) continue;
+    const DrapeBuildReport r = buildPass(corner, plan);
+    total.textile_id = r.textile_id;
+    total.planned += r.planned;
+    total.to_simulate += r.to_simulate;
+    total.already_done += r.already_done;
+    total.simulated_now += r.simulated_now;
+    total.failed_now += r.failed_now;
+    total.derived_now += r.derived_now;
+    total.simulation_seconds += r.simulation_seconds;
+    total.failures.insert(total.failures.end(), r.failures.begin(), r.failures.end());
+  }
+  total.wall_seconds = secondsSince(t0);
+  return total;
+}
+
+DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<PlannedHoldPoint>& plan) {
   const auto t0 = Clock::now();
   const DrapeBuildConfig& c = config_;
   DrapeBuildReport rep;
@@ -270,10 +342,10 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
   rep.symmetric_grid = symmetric_grid_;
   rep.textile_id = db_.ensureTextile(c.textile, c.material);
   if (c.retry_failed) db_.resetFailed(rep.textile_id);
-  const std::string params = parametersText(c);
+  const std::string params = parametersText(c, corner);
 
   std::vector<NewSimulation> rows;
-  for (const PlannedHoldPoint& h : plan_) {
+  for (const PlannedHoldPoint& h : plan) {
     NewSimulation r;
     r.textile_id = rep.textile_id;
     r.hold = h.position;
@@ -312,8 +384,8 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
   };
   std::vector<Job> jobs;
   std::map<std::size_t, std::size_t> job_of_source;
-  for (std::size_t k = 0; k < plan_.size(); ++k) {
-    if (plan_[k].mirror != MirrorKind::kIdentity) continue;
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    if (plan[k].mirror != MirrorKind::kIdentity) continue;
     ++rep.to_simulate;
     const SimulationStatus st = state[ids[k]].status;
     if (st == SimulationStatus::kDone) ++rep.already_done;
@@ -323,9 +395,9 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
     }
   }
   std::vector<std::pair<std::int64_t, std::string>> orphan_failures;
-  for (std::size_t k = 0; k < plan_.size(); ++k) {
-    if (plan_[k].mirror == MirrorKind::kIdentity || state[ids[k]].status != SimulationStatus::kPending) continue;
-    const std::size_t src = static_cast<std::size_t>(plan_[k].source);
+  for (std::size_t k = 0; k < plan.size(); ++k) {
+    if (plan[k].mirror == MirrorKind::kIdentity || state[ids[k]].status != SimulationStatus::kPending) continue;
+    const std::size_t src = static_cast<std::size_t>(plan[k].source);
     const SimulationRecord& s = state[ids[src]];
     if (s.status == SimulationStatus::kPending) {
       jobs[job_of_source[src]].derived.push_back(k);
@@ -372,7 +444,9 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
   };
   if (c.progress && n_sim_jobs > 0) {
     std::lock_guard<std::mutex> lock(mu);
-    std::cerr << "drape_db: " << c.textile.name << ": " << rep.planned << " hold points (" << rep.to_simulate
+    std::cerr << "drape_db: " << c.textile.name
+              << (corner >= 0 ? " (bracket corner " + std::to_string(corner) + " of the hold points' grid cells)" : "")
+              << ": " << rep.planned << " hold points (" << rep.to_simulate
               << " simulated, symmetry " << rep.symmetry << (symmetric_grid_ ? "" : ", no mirroring") << "), "
               << rep.already_done << " already done, " << n_sim_jobs << " to run on " << workers << " worker(s) x "
               << c.threads_per_simulation << " thread(s)\n";
@@ -414,7 +488,9 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
         if (job.simulate) {
           src.simulation_id = job.id;
           try {
-            DrapeSceneSpec spec = sceneSpec(c, plan_[job.plan_index].position);
+            const std::optional<Vec2> at = bracketHold(grid_, plan[job.plan_index].position, corner);
+            if (!at) throw std::invalid_argument("hold point has no particle at bracket corner " + std::to_string(corner));
+            DrapeSceneSpec spec = sceneSpec(c, *at);
             double wall = 0;
             for (int attempt = 0; attempt < (c.retry_with_smaller_steps ? 2 : 1); ++attempt) {
               if (attempt == 1) {
@@ -461,7 +537,7 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
             std::lock_guard<std::mutex> lock(mu);
             ++failed;
             ++rep.failed_now;
-            const Vec2 p = plan_[job.plan_index].position;
+            const Vec2 p = plan[job.plan_index].position;
             char hold[96];
             std::snprintf(hold, sizeof hold, "hold (%.6g, %.6g) m, simulation %lld: ", p.x(), p.y(),
                           static_cast<long long>(job.id));
@@ -490,7 +566,7 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
         const Vec3 hold_world = src.positions.segment<3>(3 * src.held_particle);
         std::vector<SimulationResult> derived;
         for (std::size_t k : job.derived) {
-          const MirrorKind m = plan_[k].mirror;
+          const MirrorKind m = plan[k].mirror;
           const std::vector<Index>& perm = mesh.perms.at(m);
           if (static_cast<Eigen::Index>(perm.size()) * 3 != src.positions.size())
             throw BlobFormatError("simulation " + std::to_string(job.id) + " has " +

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <set>
+#include <stdexcept>
 #include <utility>
 
 #include "textile_handling/db/blob_codec.h"
@@ -38,6 +39,40 @@ bool DrapeMatchIndex::classesNeighbour(std::size_t a, std::size_t b, bool diagon
         return true;
   return false;
 }
+
+namespace {
+
+// Lattice indices of the loaded hold points: per textile, the rank of y and of x among the distinct
+// coordinates (1 um apart or more) of all loaded hold points of that textile. The stored indices rank
+// a hold point within the plan of one build; an index that loads rows of several builds (other
+// settings, other hold-point sets) would otherwise mix incompatible rankings and call points
+// neighbours that are not.
+void assignLatticeIndices(DrapeMatchIndex& index) {
+  std::map<std::string, std::vector<double>> xs, ys;
+  for (const IndexedHoldPoint& h : index.hold_points) {
+    xs[h.textile].push_back(h.hold.x());
+    ys[h.textile].push_back(h.hold.y());
+  }
+  auto distinct = [](std::vector<double>& v) {
+    std::sort(v.begin(), v.end());
+    std::vector<double> out;
+    for (double a : v)
+      if (out.empty() || a - out.back() > 1e-6) out.push_back(a);
+    v = out;
+  };
+  auto rank = [](const std::vector<double>& v, double a) {
+    // index of the distinct value within 1e-6 (the first one at or above a - 1e-6)
+    return static_cast<int>(std::lower_bound(v.begin(), v.end(), a - 1e-6) - v.begin());
+  };
+  for (auto& [t, v] : xs) distinct(v);
+  for (auto& [t, v] : ys) distinct(v);
+  for (IndexedHoldPoint& h : index.hold_points) {
+    h.lattice_i = rank(ys[h.textile], h.hold.y());
+    h.lattice_j = rank(xs[h.textile], h.hold.x());
+  }
+}
+
+}  // namespace
 
 DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -122,22 +157,19 @@ DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchI
       e.mask = std::move(mask);
       index.matcher.add(e);
       index.entry_view_ids.push_back(view_id);
+      index.entry_class.push_back(static_cast<std::uint32_t>(index.hold_points[current].class_index));
     }
   });
   if (index.matcher.empty())
     throw NotFoundError("no finished simulations with views in '" + db.path() + "'" +
                         (options.textile.empty() ? std::string() : " for textile '" + options.textile + "'"));
+  assignLatticeIndices(index);
   index.load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return index;
 }
 
 namespace {
 
-std::size_t maxClassSize(const DrapeMatchIndex& index) {
-  std::size_t m = 1;
-  for (const auto& c : index.classes) m = std::max(m, c.members.size());
-  return m;
-}
 
 template <typename MatchT, typename Fill>
 DrapeQueryResult foldClasses(const DrapeMatchIndex& index, const std::vector<MatchT>& matches, int top_k, Fill fill) {
@@ -188,18 +220,52 @@ DrapeQueryResult foldClasses(const DrapeMatchIndex& index, const std::vector<Mat
   return out;
 }
 
-vision::MatchOptions widened(const DrapeMatchIndex& index, const vision::MatchOptions& options) {
+
+}  // namespace
+
+vision::MatchOptions metricShiftOptions(const vision::CanonicalFrame& frame, double max_dx_m, double max_dy_m,
+                                        int top_k) {
+  if (!(max_dx_m >= 0) || !(max_dy_m >= 0) || !std::isfinite(max_dx_m) || !std::isfinite(max_dy_m))
+    throw InvalidInputError("shift range must be finite and >= 0 m");
+  if (top_k < 1) throw InvalidInputError("top_k must be >= 1");
+  if (!(frame.metres_per_pixel > 0) || !std::isfinite(frame.metres_per_pixel))
+    throw InvalidInputError("frame has no valid metric scale");
+  vision::MatchOptions o;
+  o.max_dx = static_cast<int>(std::ceil(max_dx_m / frame.metres_per_pixel - 1e-9));
+  o.max_dy = static_cast<int>(std::ceil(max_dy_m / frame.metres_per_pixel - 1e-9));
+  o.top_k = top_k;
+  return o;
+}
+
+namespace {
+
+// The matcher aggregates per class directly (the best entry, or fused member, of any member), so top-k
+// classes plus the runner-up for the margin is all it has to find. Entries added to the matcher after
+// loading (foreign distractors) are groups of their own.
+const std::vector<std::uint32_t>* classGroups(const DrapeMatchIndex& index, std::vector<std::uint32_t>* extended) {
+  if (index.entry_class.size() == index.matcher.size()) return &index.entry_class;
+  if (index.entry_class.size() > index.matcher.size())
+    throw std::invalid_argument("match index: more entry classes than matcher entries");
+  *extended = index.entry_class;
+  extended->resize(index.matcher.size());
+  for (std::size_t e = index.entry_class.size(); e < index.matcher.size(); ++e)
+    (*extended)[e] = static_cast<std::uint32_t>(index.classes.size() + index.matcher.groupOf(e));
+  return extended;
+}
+
+vision::MatchOptions classOptions(const vision::MatchOptions& options, const std::vector<std::uint32_t>* groups) {
   if (options.top_k < 1) throw std::invalid_argument("top_k must be >= 1");
   vision::MatchOptions o = options;
-  const std::size_t want = (static_cast<std::size_t>(options.top_k) + 1) * maxClassSize(index);
-  o.top_k = static_cast<int>(std::min<std::size_t>(std::max<std::size_t>(want, 1), index.matcher.numGroups()));
+  o.top_k = options.top_k + 1;
+  o.group_of_entry = groups;
   return o;
 }
 
 }  // namespace
 
 DrapeQueryResult queryDrape(const DrapeMatchIndex& index, const vision::BitMask& mask, const vision::MatchOptions& options) {
-  const vision::QueryResult r = index.matcher.query(mask, widened(index, options));
+  std::vector<std::uint32_t> extended;
+  const vision::QueryResult r = index.matcher.query(mask, classOptions(options, classGroups(index, &extended)));
   DrapeQueryResult out = foldClasses(index, r.matches, options.top_k, [](const vision::MatchResult& m, DrapeMatch& d) {
     d.view_angle_deg = m.view_angle_deg;
     d.dx = m.dx;
@@ -211,7 +277,9 @@ DrapeQueryResult queryDrape(const DrapeMatchIndex& index, const vision::BitMask&
 
 DrapeQueryResult queryDrapeFused(const DrapeMatchIndex& index, const std::vector<vision::FusionImage>& images,
                                  const vision::MatchOptions& options) {
-  const vision::FusedQueryResult r = index.matcher.queryFused(images, widened(index, options));
+  std::vector<std::uint32_t> extended;
+  const vision::FusedQueryResult r =
+      index.matcher.queryFused(images, classOptions(options, classGroups(index, &extended)));
   DrapeQueryResult out = foldClasses(index, r.matches, options.top_k, [](const vision::FusedMatch& m, DrapeMatch& d) {
     d.view_angle_deg = m.base_view_deg;
     if (!m.images.empty()) {

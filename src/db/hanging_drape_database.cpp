@@ -2,11 +2,13 @@
 
 #include <sqlite3.h>
 
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "textile_handling/db/blob_codec.h"
 
@@ -170,7 +172,7 @@ void migrateSchemaStep(SqliteConnection& conn, int from_version) {
 // ---- open -------------------------------------------------------------------------------------
 
 HangingDrapeDatabase::HangingDrapeDatabase(const std::string& path, const DatabaseOpenOptions& options)
-    : path_(path), read_only_(options.read_only) {
+    : path_(path), read_only_(options.read_only), busy_timeout_ms_(options.busy_timeout_ms) {
   int flags = options.read_only ? SqliteConnection::kReadOnly : SqliteConnection::kReadWrite;
   if (!options.read_only && options.create) flags |= SqliteConnection::kCreate;
   conn_ = SqliteConnection(path, flags);
@@ -228,7 +230,23 @@ void HangingDrapeDatabase::initialiseSchema() {
   // 2. A drape database (or an empty file) opened for writing: WAL, so that readers never block the
   //    writer and a killed writer leaves a consistent file. With WAL, synchronous = NORMAL keeps every
   //    committed transaction across a process crash (only a power loss can drop the last commits).
-  const std::string mode = conn_.queryText("PRAGMA journal_mode = WAL");
+  //    Switching to WAL needs an exclusive lock, and SQLite answers SQLITE_BUSY at once (without the busy
+  //    handler) when another connection is mid-transaction, e.g. another process creating the schema of
+  //    the same new file. So retry for up to the busy timeout.
+  std::string mode;
+  for (const auto start = std::chrono::steady_clock::now();;) {
+    try {
+      mode = conn_.queryText("PRAGMA journal_mode = WAL");
+      break;
+    } catch (const SqliteError& e) {
+      const int primary = e.code() & 0xff;
+      const auto waited = std::chrono::steady_clock::now() - start;
+      if ((primary != SQLITE_BUSY && primary != SQLITE_LOCKED) ||
+          waited > std::chrono::milliseconds(busy_timeout_ms_))
+        throw;
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  }
   if (mode != "wal") throw SqliteError("cannot switch '" + path_ + "' to WAL mode (got '" + mode + "')", SQLITE_ERROR);
   conn_.exec("PRAGMA synchronous = NORMAL");
   if (f.objects > 0 && f.version == kSchemaVersion) return;

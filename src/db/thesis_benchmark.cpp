@@ -91,6 +91,19 @@ std::string holdText(const Vec2& p) { return "(" + fmt(p.x() * 100, 1) + ", " + 
 
 }  // namespace
 
+vision::CanonicalFrame benchmarkFrame(const ThesisBenchmarkConfig& cfg) {
+  if (cfg.frame_px < 8 || cfg.frame_px > 1024 || !(cfg.frame_metres > 0) || !std::isfinite(cfg.frame_metres))
+    throw std::invalid_argument("bench: the frame needs 8..1024 px and a positive size");
+  vision::CanonicalFrame f = vision::CanonicalFrame::fromMetric(cfg.frame_metres, cfg.frame_metres, cfg.frame_px);
+  f.top_margin_px = 2.0 * cfg.frame_px / 64.0;  // the same metric margin as the 64 px default
+  return f;
+}
+
+vision::MatchOptions benchmarkMatchOptions(const ThesisBenchmarkConfig& cfg) {
+  return metricShiftOptions(benchmarkFrame(cfg), cfg.max_shift_x_m < 0 ? kThesisShiftXMetres : cfg.max_shift_x_m,
+                            cfg.max_shift_y_m < 0 ? kThesisShiftYMetres : cfg.max_shift_y_m);
+}
+
 std::string benchmarkCsvHeader() {
   return "experiment,variant,silhouettes,hold_points,classes,queries,query_ms,query_p95_ms,exact_rate,within_one_rate,"
          "within_one_diagonal_rate,top5_rate,neighbour_share_of_errors,build_s,simulations,notes";
@@ -129,10 +142,17 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   base.spacing = cfg.spacing;
   base.workers = cfg.workers;
   base.progress = cfg.progress;
+  base.frame = benchmarkFrame(cfg);
+  base.bracket_hold_points = cfg.bracket_hold_points;
+  if (!(cfg.max_time_s > 0) || !std::isfinite(cfg.max_time_s)) throw std::invalid_argument("bench: max_time_s must be > 0");
+  base.settings.max_time = cfg.max_time_s;
   const TextileSymmetry sym = detectSymmetry(base.textile);
   base.hold_points = fundamentalDomainGrid(base.textile, sym, nx, ny);
-  log << "== database: towel 64 x 46 cm, cotton, d = " << cfg.spacing * 100 << " cm, " << base.hold_points.size()
-      << " hold points in one quadrant (" << nx << " x " << ny << "), 36 views of 64 x 64 px\n";
+  log << "== database: towel 64 x 46 cm, cotton, d = " << cfg.spacing * 100 << " cm, "
+      << (cfg.bracket_hold_points ? "hold points bracketed by the particles of their grid cells, " : "")
+      << base.hold_points.size()
+      << " hold points in one quadrant (" << nx << " x " << ny << "), 36 views of " << base.frame.width_px << " x "
+      << base.frame.height_px << " px over " << fmt(cfg.frame_metres, 2) << " m\n";
   HangingDrapeDatabase db(db_path);
   DrapeDatabaseBuilder builder(db, base);
   const DrapeBuildReport rep = builder.build();
@@ -181,6 +201,7 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   for (std::size_t k = 0; k < variants.size(); ++k) {
     Variant& v = variants[k];
     v.config.use_symmetry = false;
+    v.config.bracket_hold_points = false;  // held-out shapes: the particle nearest to the true hold point
     v.config.hold_points = held_points;
     v.config.views.count = 1;  // the held-out rows are only used as shapes
     log << "== held-out shapes (" << v.name << "): " << v.description << ", hold points mirrored into random quadrants\n";
@@ -208,9 +229,27 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   EvaluationOptions eo;
   eo.pairs_per_shape = pairs;
   eo.seed = cfg.seed;
+  eo.match = benchmarkMatchOptions(cfg);
+  log << "== matching: shift search +-" << eo.match.max_dx << " px horizontally, +-" << eo.match.max_dy
+      << " px vertically (" << fmt(eo.match.max_dx * index.frame.metres_per_pixel * 100, 1) << " / "
+      << fmt(eo.match.max_dy * index.frame.metres_per_pixel * 100, 1) << " cm)\n";
   std::vector<MatchEvaluation> single(variants.size()), fused(variants.size());
   std::vector<HeldOutPair> all_pairs;
+  std::string skipped;
   for (std::size_t k = 0; k < variants.size(); ++k) {
+    // A hold point whose database simulation failed has no class: its held-out shapes cannot be scored.
+    // They are left out and named (the run does not stop), so the counts stay honest.
+    std::vector<HeldOutShape> usable;
+    for (HeldOutShape& s : shapes[k]) {
+      if (index.classOf(s.textile, s.hold)) {
+        usable.push_back(std::move(s));
+        continue;
+      }
+      skipped += (skipped.empty() ? "" : "; ") + variants[k].name + " " + holdText(s.hold);
+      log << "   WARNING: held-out hold point " << holdText(s.hold) << " (" << variants[k].name
+          << ") has no class in the database (its simulation failed): left out\n";
+    }
+    shapes[k] = std::move(usable);
     eo.seed = cfg.seed + 1000 * (k + 1);
     const std::vector<HeldOutPair> p = renderHeldOutPairs(index, shapes[k], eo);
     std::tie(single[k], fused[k]) = evaluatePairs(index, p, eo);
@@ -230,7 +269,8 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   };
   add("single_view", variants_text, single_all,
       "held-out shapes: " + variants[0].description + "; " + variants[1].description +
-          "; camera 4 m, f = 1200 px, noise sigma 6, segmented; azimuths between stored views");
+          "; camera 4 m, f = 1200 px, noise sigma 6, segmented; azimuths between stored views" +
+          (skipped.empty() ? std::string() : "; left out (no database class): " + skipped));
   add("two_view", variants_text, fused_all, "same images as single_view, fused in pairs turned 60-120 deg");
   for (std::size_t k = 0; k < variants.size(); ++k) {
     add("single_view_" + variants[k].name, variants[k].name, single[k], variants[k].description);
@@ -254,8 +294,32 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
     TextileOutline distractor;
     distractor.name = "synthetic_distractors";  // an asymmetric outline: no hold points merge
     distractor.outline = {Vec2(0, 0), Vec2(1, 0), Vec2(1, 1), Vec2(0, 0.9)};
+    // A bracketed database can hold more than entries_10k silhouettes: then the copy drops whole
+    // bracket passes, the highest corner first (corner 0 alone covers every hold point), until it fits.
+    std::string dropped;
+    long towel_kept = static_cast<long>(index.matcher.size());
+    const std::vector<std::string> passes = DrapeDatabaseBuilder::parameterTexts(base);
+    for (std::size_t k = passes.size(); k-- > 1 && towel_kept > cfg.entries_10k;) {
+      big_db.withConnection([&](SqliteConnection& conn) {
+        SqliteTransaction tx(conn);
+        SqliteStatement n = conn.prepare(
+            "SELECT count(*) FROM views v JOIN simulations s ON s.id = v.simulation_id WHERE s.parameters = ?");
+        n.bind(1, passes[k]);
+        n.step();
+        towel_kept -= static_cast<long>(n.getInt(0));
+        SqliteStatement del = conn.prepare("DELETE FROM simulations WHERE parameters = ?");  // views cascade
+        del.bind(1, passes[k]);
+        del.run();
+        tx.commit();
+        return 0;
+      });
+      dropped += (dropped.empty() ? "" : ", ") + std::to_string(k);
+    }
+    if (!dropped.empty())
+      log << "== 10k row: bracket corner(s) " << dropped << " left out of the copy (" << towel_kept
+          << " towel silhouettes kept)\n";
     const std::int64_t tex = big_db.addTextile(distractor, Material::cotton());
-    const int need = cfg.entries_10k - static_cast<int>(index.matcher.size());
+    const int need = std::max(0, cfg.entries_10k - static_cast<int>(towel_kept));
     const vision::ViewSet views;
     const int groups = (need + views.count - 1) / views.count;
     std::vector<NewSimulation> planned;
@@ -318,7 +382,9 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
     BenchmarkRow r = rowOf("query_time_10k", variants_text, big, s10);
     r.build_s = rep.wall_seconds;
     r.simulations = rep.simulated_now + rep.already_done;
-    r.notes = "towel database (" + std::to_string(index.matcher.size()) + " silhouettes) plus " + std::to_string(added) +
+    r.notes = "towel database (" + std::to_string(towel_kept) + " silhouettes" +
+              (dropped.empty() ? std::string() : ", without bracket corner(s) " + dropped) + ") plus " +
+              std::to_string(added) +
               " synthetic hanging-textile silhouettes (distractors) in one file, loaded in " + fmt(load10k_ms, 1) +
               " ms; the single_view images, one thread";
     rows.push_back(r);
@@ -365,8 +431,14 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   std::ostringstream sum;
   sum << "drape_db bench" << (cfg.quick ? " --quick" : "") << ": thesis recognition experiment on held-out renders\n";
   sum << "database: towel 64x46 cm, cotton, d = " << cfg.spacing * 100 << " cm, " << builder.plan().size()
-      << " hold points (" << base.hold_points.size() << " simulated in one quadrant), " << index.matcher.size()
-      << " silhouettes; build " << fmt(rep.wall_seconds, 1) << " s wall (" << rep.simulated_now
+      << " hold points (" << base.hold_points.size() << " in one quadrant"
+      << (cfg.bracket_hold_points ? ", each simulated at the particles of its grid cell: " +
+                                        std::to_string(rep.to_simulate) + " simulations, " +
+                                        std::to_string(rep.planned) + " rows with the mirrors"
+                                  : std::string())
+      << "), " << index.matcher.size() << " silhouettes of " << index.frame.width_px << " x "
+      << index.frame.height_px << " px; shift search +-" << eo.match.max_dx << " / +-" << eo.match.max_dy
+      << " px; build " << fmt(rep.wall_seconds, 1) << " s wall (" << rep.simulated_now
       << " simulations now, mean " << fmt(rep.simulated_now ? rep.simulation_seconds / rep.simulated_now : 0.0, 2)
       << " s each); held-out simulations " << fmt(heldout_s, 1) << " s\n";
   for (const auto& r : rows)

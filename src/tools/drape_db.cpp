@@ -8,7 +8,8 @@
 //                   [--second-mask PNG | --second-image PNG, --second-hold-pixel U,V, --second-metres-per-pixel M,
 //                    --relative-view DEG] [--canonical] [--textile NAME]
 //   drape_db export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]
-//   drape_db bench  --out DIR [--quick] [--resume] [--threads N]
+//   drape_db bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]
+//                   [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]
 //
 // Exit status: 0 success, 1 unexpected error, 2 usage or bad input, 3 database error (cannot open, unknown
 // schema version, damaged data), 4 build finished but some simulations failed.
@@ -53,13 +54,15 @@ const char* kUsage =
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--allow-no-rest] [--quiet]\n"
+    "         [--bracket]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
     "         [--second-mask PNG | --second-image PNG] [--second-hold-pixel U,V] [--second-metres-per-pixel M]\n"
-    "         [--relative-view DEG]\n"
+    "         [--relative-view DEG] [--shift DX_M,DY_M]\n"
     "  export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
-    "  bench  --out DIR [--quick] [--resume] [--threads N]\n"
+    "  bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]\n"
+    "         [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]\n"
     "exit status: 0 ok, 1 error, 2 usage/bad input, 3 database error, 4 some simulations failed\n";
 
 // Minimal option parser: "--key value" pairs and "--flag" switches; repeated keys are kept in order.
@@ -133,7 +136,7 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--allow-no-rest", "--quiet"});
+               "--allow-no-rest", "--quiet", "--bracket"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -162,6 +165,7 @@ int cmdBuild(const Args& a) {
     c.hold_points.emplace_back(v[0], v[1]);
   }
   c.use_symmetry = !a.has("--no-symmetry");
+  c.bracket_hold_points = a.has("--bracket");
   c.retry_failed = a.has("--retry-failed");
   c.progress = !a.has("--quiet");
   if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
@@ -216,10 +220,10 @@ int cmdBuild(const Args& a) {
             << fixed(r.wall_seconds, 1) << " s wall, " << fixed(r.simulation_seconds, 1) << " s simulation time\n";
   for (const auto& f : r.failures) std::cout << "failed: " << f << "\n";
   // Rows of this plan (these settings) that are failed, whether now or in an earlier build.
-  const std::string params = DrapeDatabaseBuilder::parametersText(c);
+  const std::vector<std::string> params = DrapeDatabaseBuilder::parameterTexts(c);
   int plan_done = 0, plan_failed = 0;
   for (const SimulationRecord& s : db.simulations(r.textile_id)) {
-    if (s.parameters != params) continue;
+    if (std::find(params.begin(), params.end(), s.parameters) == params.end()) continue;
     plan_done += s.status == SimulationStatus::kDone;
     plan_failed += s.status == SimulationStatus::kFailed;
   }
@@ -326,7 +330,11 @@ vision::BitMask loadQueryMask(const Args& a, const std::string& prefix, const vi
 int cmdQuery(const Args& a) {
   a.allowOnly({"--db", "--mask", "--image", "--background", "--threshold", "--hold-pixel", "--metres-per-pixel",
                "--canonical", "--top", "--textile", "--second-mask", "--second-image", "--second-hold-pixel",
-               "--second-metres-per-pixel", "--relative-view"});
+               "--second-metres-per-pixel", "--relative-view", "--shift"});
+  const bool fused = a.has("--second-mask") || a.has("--second-image");
+  if (!fused)
+    for (const char* k : {"--second-hold-pixel", "--second-metres-per-pixel", "--relative-view"})
+      if (a.has(k)) throw UsageError(std::string(k) + " needs --second-mask or --second-image");
   DatabaseOpenOptions o;
   o.read_only = true;
   o.create = false;
@@ -334,13 +342,21 @@ int cmdQuery(const Args& a) {
   MatchIndexOptions mio;
   mio.textile = a.get("--textile");
   const DrapeMatchIndex index = loadDrapeMatchIndex(db, mio);
-  vision::MatchOptions mo;
-  mo.top_k = integer(a.get("--top", "5"), "--top");
-  if (mo.top_k < 1) throw UsageError("--top must be >= 1");
+  const int top_k = integer(a.get("--top", "5"), "--top");
+  if (top_k < 1) throw UsageError("--top must be >= 1");
+  // Shift range in metres (default: the thesis's +-30 / +-5 px at 64 px per metre), in pixels of the
+  // database's frame.
+  double sx = kThesisShiftXMetres, sy = kThesisShiftYMetres;
+  if (a.has("--shift")) {
+    const auto v = numbers(a.get("--shift"), 2, "--shift");
+    if (v[0] < 0 || v[1] < 0) throw UsageError("--shift: ranges must be >= 0 m");
+    sx = v[0];
+    sy = v[1];
+  }
+  const vision::MatchOptions mo = metricShiftOptions(index.frame, sx, sy, top_k);
   const vision::BitMask q = loadQueryMask(a, "--", index.frame);
   if (q.count() == 0) throw UsageError("the query mask is empty after canonicalisation (wrong hold pixel or scale?)");
   DrapeQueryResult r;
-  const bool fused = a.has("--second-mask") || a.has("--second-image");
   if (fused) {
     std::vector<vision::FusionImage> imgs(2);
     imgs[0].mask = q;
@@ -357,11 +373,15 @@ int cmdQuery(const Args& a) {
   for (std::size_t rank = 1; rank <= r.matches.size(); ++rank) {
     const DrapeMatch& m = r.matches[rank - 1];
     std::string eq;
+    std::vector<std::string> listed;  // a hold point has several rows (bracket corners, other builds)
     if (m.class_index != kForeignClass)
       for (std::size_t h : index.classes[m.class_index].members) {
         const Vec2 p = index.hold_points[h].hold;
+        const std::string text = "(" + fixed(p.x(), 3) + "," + fixed(p.y(), 3) + ")";
+        if (std::find(listed.begin(), listed.end(), text) != listed.end()) continue;
+        listed.push_back(text);
         if (!eq.empty()) eq += " ";
-        eq += "(" + fixed(p.x(), 3) + "," + fixed(p.y(), 3) + ")";
+        eq += text;
       }
     const std::string shift = std::to_string(m.dx) + "," + std::to_string(m.dy);
     std::cout << std::setw(4) << rank << "  " << fixed(m.score, 4) << "  " << fixed(m.margin, 4) << "  " << std::left
@@ -412,14 +432,37 @@ int cmdExport(const Args& a) {
 // ---- bench ------------------------------------------------------------------------------------
 
 int cmdBench(const Args& a) {
-  a.allowOnly({"--out", "--quick", "--resume", "--threads", "--pairs", "--seed"});
+  a.allowOnly({"--out", "--quick", "--resume", "--threads", "--pairs", "--seed", "--spacing", "--heldout-spacing",
+               "--frame", "--shift", "--thesis-shift", "--no-bracket"});
   ThesisBenchmarkConfig c;
   c.out_dir = a.require("--out");
   c.quick = a.has("--quick");
   c.resume = a.has("--resume");
   if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
   if (a.has("--pairs")) c.pairs_per_shape = integer(a.get("--pairs"), "--pairs");
+  if (c.pairs_per_shape < 1) throw UsageError("--pairs must be >= 1");
   if (a.has("--seed")) c.seed = static_cast<std::uint64_t>(integer(a.get("--seed"), "--seed"));
+  if (a.has("--spacing")) c.spacing = number(a.get("--spacing"), "--spacing");
+  if (a.has("--heldout-spacing")) c.heldout_spacing = number(a.get("--heldout-spacing"), "--heldout-spacing");
+  if (!(c.spacing > 0) || !(c.heldout_spacing > 0)) throw UsageError("--spacing and --heldout-spacing must be > 0");
+  if (a.has("--frame")) {
+    const std::string f = a.get("--frame");
+    const auto at = f.find('@');
+    if (at == std::string::npos) throw UsageError("--frame: expected PX@METRES, e.g. 128@1.0");
+    c.frame_px = integer(f.substr(0, at), "--frame");
+    c.frame_metres = number(f.substr(at + 1), "--frame");
+    if (c.frame_px < 8 || c.frame_px > 1024 || !(c.frame_metres > 0))
+      throw UsageError("--frame: 8..1024 px over a positive size");
+  }
+  if (a.has("--shift") && a.has("--thesis-shift")) throw UsageError("give --shift or --thesis-shift, not both");
+  if (a.has("--shift")) {
+    const auto v = numbers(a.get("--shift"), 2, "--shift");
+    if (v[0] < 0 || v[1] < 0) throw UsageError("--shift: ranges must be >= 0 m");
+    c.max_shift_x_m = v[0];
+    c.max_shift_y_m = v[1];
+  }
+  if (a.has("--thesis-shift")) c.max_shift_x_m = c.max_shift_y_m = -1;
+  if (a.has("--no-bracket")) c.bracket_hold_points = false;
   runThesisBenchmark(c);
   return kExitOk;
 }
@@ -433,11 +476,12 @@ int main(int argc, char** argv) {
   }
   const std::string cmd = argv[1];
   try {
-    if (cmd == "build") return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet"}));
+    if (cmd == "build")
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));
-    if (cmd == "bench") return cmdBench(Args(argc, argv, 2, {"--quick", "--resume"}));
+    if (cmd == "bench") return cmdBench(Args(argc, argv, 2, {"--quick", "--resume", "--thesis-shift", "--no-bracket"}));
     std::cerr << "drape_db: unknown command '" << cmd << "'\n" << kUsage;
     return kExitUsage;
   } catch (const UsageError& e) {

@@ -534,9 +534,23 @@ QueryResult SilhouetteMatcher::query(const BitMask& mask, const MatchOptions& op
   const std::int64_t qa = mask.count();
   if (qa == 0) throw std::invalid_argument("SilhouetteMatcher::query: query mask has no foreground pixels");
 
+  // Aggregation groups: (textile, hold point) by default, or the caller's coarser grouping.
+  const std::vector<std::uint32_t>* custom = options.group_of_entry;
+  std::size_t num_groups = groups_.size();
+  if (custom) {
+    if (custom->size() != meta_.size())
+      throw std::invalid_argument("SilhouetteMatcher::query: group_of_entry has " + std::to_string(custom->size()) +
+                                  " values for " + std::to_string(meta_.size()) + " entries");
+    num_groups = 0;
+    for (std::uint32_t g : *custom) num_groups = std::max<std::size_t>(num_groups, static_cast<std::size_t>(g) + 1);
+  }
+  auto groupOfEntry = [&](std::size_t e) {
+    return custom ? static_cast<int>((*custom)[e]) : meta_[e].group;
+  };
+
   QueryResult result;
   result.stats.entries = meta_.size();
-  std::vector<GroupBest> best(groups_.size());
+  std::vector<GroupBest> best(num_groups);
   const std::size_t K = static_cast<std::size_t>(std::max(options.top_k, 2));
   std::vector<int> top;  // group ids, best first, at most K (exhaustive: all)
 
@@ -552,11 +566,11 @@ QueryResult SilhouetteMatcher::query(const BitMask& mask, const MatchOptions& op
       ++result.stats.evaluated;
       result.stats.shifts_evaluated += static_cast<std::uint64_t>(2 * options.max_dx + 1) * (2 * options.max_dy + 1);
       if (!(r.score > 0)) continue;
-      GroupBest& gb = best[static_cast<std::size_t>(meta_[e].group)];
+      GroupBest& gb = best[static_cast<std::size_t>(groupOfEntry(e))];
       if (gb.score < 0 || betterEntry(r.score, static_cast<std::uint32_t>(e), gb.score, gb.entry))
         gb = GroupBest{r.score, static_cast<std::uint32_t>(e), r.dx, r.dy};
     }
-    for (std::size_t g = 0; g < groups_.size(); ++g)
+    for (std::size_t g = 0; g < num_groups; ++g)
       if (best[g].score > 0) top.push_back(static_cast<int>(g));
     std::sort(top.begin(), top.end(), groupBefore);
   } else {
@@ -597,7 +611,7 @@ QueryResult SilhouetteMatcher::query(const BitMask& mask, const MatchOptions& op
       else
         --left;
       ++visited;
-      const int g = meta_[e].group;
+      const int g = groupOfEntry(e);
       const double floor = std::max(t, best[static_cast<std::size_t>(g)].score);
       const EntryOutcome o = acc.evaluate(q, e, floor, scratch, result.stats);
       if (o.kind == EntryOutcome::kFound) offer(g, o.score, static_cast<std::uint32_t>(e), o.dx, o.dy);
@@ -769,20 +783,44 @@ FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& i
   std::stable_sort(order.begin(), order.end(),
                    [&cands](std::size_t a, std::size_t b) { return cands[a].bound > cands[b].bound; });
 
+  // Ranking groups: the member groups themselves, or the caller's coarser groups (group_of_entry). A
+  // candidate is always one member group at one base view (the images are compared with that member's
+  // views, which keeps what the known relative turn reveals); a coarse group scores its best member.
+  std::vector<int> coarse(groups_.size());
+  std::size_t num_coarse = groups_.size();
+  if (options.group_of_entry) {
+    const std::vector<std::uint32_t>& ge = *options.group_of_entry;
+    if (ge.size() != n)
+      throw std::invalid_argument("SilhouetteMatcher::queryFused: group_of_entry has " + std::to_string(ge.size()) +
+                                  " values for " + std::to_string(n) + " entries");
+    num_coarse = 0;
+    for (std::size_t g = 0; g < groups_.size(); ++g) {
+      const std::uint32_t c0 = ge[groups_[g].entries.front()];
+      for (std::uint32_t e : groups_[g].entries)
+        if (ge[e] != c0)
+          throw std::invalid_argument(
+              "SilhouetteMatcher::queryFused: group_of_entry splits the entries of one (textile, hold point)");
+      coarse[g] = static_cast<int>(c0);
+      num_coarse = std::max<std::size_t>(num_coarse, static_cast<std::size_t>(c0) + 1);
+    }
+  } else {
+    std::iota(coarse.begin(), coarse.end(), 0);
+  }
   struct FusedBest {
     double score = -1;
+    int g = 0;  // member group
     int v = 0;
     std::vector<std::uint32_t> pick;
   };
-  std::vector<FusedBest> best(groups_.size());
+  std::vector<FusedBest> best(num_coarse);
   auto better = [](double s1, int g1, int v1, double s2, int g2, int v2) {
     return s1 > s2 || (s1 == s2 && (g1 < g2 || (g1 == g2 && v1 < v2)));
   };
-  auto groupBefore = [&](int g1, int g2) {
-    return better(best[static_cast<std::size_t>(g1)].score, g1, best[static_cast<std::size_t>(g1)].v,
-                  best[static_cast<std::size_t>(g2)].score, g2, best[static_cast<std::size_t>(g2)].v);
+  auto groupBefore = [&](int c1, int c2) {
+    const FusedBest &b1 = best[static_cast<std::size_t>(c1)], &b2 = best[static_cast<std::size_t>(c2)];
+    return better(b1.score, b1.g, b1.v, b2.score, b2.g, b2.v);
   };
-  const std::size_t K = options.exhaustive ? groups_.size() : static_cast<std::size_t>(std::max(options.top_k, 2));
+  const std::size_t K = options.exhaustive ? num_coarse : static_cast<std::size_t>(std::max(options.top_k, 2));
   std::vector<int> top;
   auto threshold = [&]() { return top.size() < K ? 0.0 : best[static_cast<std::size_t>(top.back())].score; };
 
@@ -790,7 +828,8 @@ FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& i
     Candidate& c = cands[oi];
     const double t = threshold();
     if (!options.exhaustive && (c.bound < t || c.bound <= 0)) break;
-    FusedBest& gb = best[static_cast<std::size_t>(c.g)];
+    const int cg = coarse[static_cast<std::size_t>(c.g)];
+    FusedBest& gb = best[static_cast<std::size_t>(cg)];
     if (!options.exhaustive) {
       const double floor = std::max(t, gb.score);
       if (c.bound < floor) continue;
@@ -805,13 +844,14 @@ FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& i
     std::vector<std::uint32_t> pick(m);
     const double f = fusedValue(c, &pick);
     if (!(f > 0)) continue;
-    if (gb.score >= 0 && !better(f, c.g, c.v, gb.score, c.g, gb.v)) continue;
+    if (gb.score >= 0 && !better(f, c.g, c.v, gb.score, gb.g, gb.v)) continue;
     gb.score = f;
+    gb.g = c.g;
     gb.v = c.v;
     gb.pick = pick;
-    if (std::find(top.begin(), top.end(), c.g) == top.end()) {
-      if (top.size() >= K && !groupBefore(c.g, top.back())) continue;
-      top.push_back(c.g);
+    if (std::find(top.begin(), top.end(), cg) == top.end()) {
+      if (top.size() >= K && !groupBefore(cg, top.back())) continue;
+      top.push_back(cg);
     }
     std::sort(top.begin(), top.end(), groupBefore);
     if (top.size() > K) top.pop_back();
@@ -827,8 +867,8 @@ FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& i
   const double s0 = top.empty() ? 0.0 : best[static_cast<std::size_t>(top[0])].score;
   const double s1 = top.size() > 1 ? best[static_cast<std::size_t>(top[1])].score : 0.0;
   for (std::size_t r = 0; r < k; ++r) {
-    const int g = top[r];
-    const FusedBest& gb = best[static_cast<std::size_t>(g)];
+    const FusedBest& gb = best[static_cast<std::size_t>(top[r])];
+    const int g = gb.g;
     FusedMatch fm;
     fm.textile_id = groups_[static_cast<std::size_t>(g)].textile_id;
     fm.hold_point_id = groups_[static_cast<std::size_t>(g)].hold_point_id;

@@ -3,6 +3,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -312,4 +313,75 @@ TEST(DrapeDatabaseBuilder, ProgressBar) {
   EXPECT_EQ(formatProgressBar(5, 10, 62.0, 0, 10), "[=====>    ] 5/10 simulations  elapsed 01:02  ETA 01:02");
   EXPECT_EQ(formatProgressBar(10, 10, 3725.0, 2, 10),
             "[==========] 10/10 simulations (2 failed)  elapsed 1:02:05  ETA 00:00");
+}
+
+TEST(DrapeDatabaseBuilder, BracketHoldIsACornerOfTheGridCell) {
+  std::string err;
+  const ParticleGrid g = ParticleGrid::rasterize(presetTextile("towel"), 0.04, &err);
+  ASSERT_FALSE(g.empty()) << err;
+  auto at = [&](const Vec2& p, int k) { return DrapeDatabaseBuilder::bracketHold(g, p, k); };
+  const Vec2 p(0.05, 0.06);  // inside the cell [0.04, 0.08] x [0.04, 0.08]
+  EXPECT_TRUE(at(p, 0)->isApprox(Vec2(0.04, 0.04)));
+  EXPECT_TRUE(at(p, 1)->isApprox(Vec2(0.08, 0.04)));
+  EXPECT_TRUE(at(p, 2)->isApprox(Vec2(0.04, 0.08)));
+  EXPECT_TRUE(at(p, 3)->isApprox(Vec2(0.08, 0.08)));
+  EXPECT_TRUE(at(p, -1)->isApprox(p));  // no bracket: the hold point itself
+  const Vec2 on_col(0.08, 0.06);        // on a grid column: the upper-column corners are duplicates
+  EXPECT_TRUE(at(on_col, 0)->isApprox(Vec2(0.08, 0.04)));
+  EXPECT_FALSE(at(on_col, 1).has_value());
+  EXPECT_TRUE(at(on_col, 2)->isApprox(Vec2(0.08, 0.08)));
+  EXPECT_FALSE(at(on_col, 3).has_value());
+  EXPECT_FALSE(at(Vec2(0.10, 0.45), 2).has_value());  // 46 cm is not a multiple of 4 cm: no row above
+  EXPECT_FALSE(at(p, 4).has_value());
+}
+
+TEST(DrapeDatabaseBuilder, BracketedHoldPointsGetOneRowPerCornerParticle) {
+  TempDatabase t("bracket");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c = smallSquare();  // quadrant points x, y in {0, .10, .15}; d = 3 cm
+  c.bracket_hold_points = true;
+  DrapeDatabaseBuilder b(db, c);
+  const DrapeBuildReport r = b.build();
+  // 0 and 0.15 lie on grid lines (one particle), 0.10 between two: (1 + 2 + 1)^2 simulated rows.
+  EXPECT_EQ(r.to_simulate, 16);
+  EXPECT_EQ(r.failed_now, 0);
+  const std::vector<std::string> texts = DrapeDatabaseBuilder::parameterTexts(c);
+  ASSERT_EQ(texts.size(), 4u);
+  EXPECT_EQ(std::set<std::string>(texts.begin(), texts.end()).size(), 4u);
+  std::string err;
+  const ParticleGrid g = ParticleGrid::rasterize(c.textile, c.spacing, &err);
+  int simulated = 0;
+  for (const SimulationRecord& s : db.simulations(0, SimulationStatus::kDone)) {
+    const auto it = std::find(texts.begin(), texts.end(), s.parameters);
+    ASSERT_NE(it, texts.end());
+    const int corner = static_cast<int>(it - texts.begin());
+    if (s.source != MirrorKind::kIdentity) continue;
+    ++simulated;
+    // The pinned particle is that corner of the cell containing the (nominal) hold point.
+    const auto want = DrapeDatabaseBuilder::bracketHold(g, s.hold, corner);
+    ASSERT_TRUE(want.has_value());
+    EXPECT_TRUE(g.activePosition(s.held_particle).isApprox(*want, 1e-9))
+        << "hold (" << s.hold.x() << ", " << s.hold.y() << ") corner " << corner;
+  }
+  EXPECT_EQ(simulated, 16);
+  // The index keeps one class per nominal hold point (up to symmetry) with all its corner rows, on the
+  // lattice of the nominal points.
+  MatchIndexOptions o;
+  o.textile = "square";
+  const DrapeMatchIndex index = loadDrapeMatchIndex(db, o);
+  EXPECT_EQ(index.classes.size(), 9u);
+  std::size_t members = 0;
+  for (const auto& cl : index.classes) members += cl.members.size();
+  EXPECT_EQ(members, index.hold_points.size());
+  const auto c0 = index.classOf("square", Vec2(0.0, 0.0)), c1 = index.classOf("square", Vec2(0.10, 0.0)),
+             c2 = index.classOf("square", Vec2(0.15, 0.0));
+  ASSERT_TRUE(c0 && c1 && c2);
+  EXPECT_TRUE(index.classesNeighbour(*c0, *c1, false));
+  EXPECT_FALSE(index.classesNeighbour(*c0, *c2, false));
+  // Only the bracket passes: a plain build of the same settings is another parameter set.
+  DrapeBuildConfig plain = smallSquare();
+  EXPECT_EQ(std::find(texts.begin(), texts.end(), DrapeDatabaseBuilder::parametersText(plain)), texts.end());
+  // Resume: nothing left to do.
+  DrapeDatabaseBuilder again(db, c);
+  EXPECT_EQ(again.build().simulated_now, 0);
 }

@@ -2,6 +2,7 @@
 // neighbours, top-5 and answers outside the index (foreign distractors).
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -96,4 +97,23 @@ TEST(DrapeMatchEvaluation, TopFiveCountsTheTruthBehindAForeignWinner) {
   EXPECT_EQ(single.top5, 2);
   EXPECT_EQ((single.confusion.at({0, kForeignClass})), 2);
   EXPECT_EQ(fused.top5, 1);
+}
+
+TEST(DrapeMatchEvaluation, ShiftRangesInMetresFollowTheFrame) {
+  vision::CanonicalFrame f64;  // 64 px per metre
+  const vision::MatchOptions thesis = metricShiftOptions(f64, kThesisShiftXMetres, kThesisShiftYMetres);
+  EXPECT_EQ(thesis.max_dx, 30);
+  EXPECT_EQ(thesis.max_dy, 5);
+  const vision::CanonicalFrame f128 = vision::CanonicalFrame::fromMetric(1.0, 1.0, 128);
+  const vision::MatchOptions t128 = metricShiftOptions(f128, kThesisShiftXMetres, kThesisShiftYMetres, 3);
+  EXPECT_EQ(t128.max_dx, 60);
+  EXPECT_EQ(t128.max_dy, 10);
+  EXPECT_EQ(t128.top_k, 3);
+  const vision::MatchOptions small = metricShiftOptions(f128, 0.05, 0.03);
+  EXPECT_EQ(small.max_dx, 7);  // 6.4 px, rounded up
+  EXPECT_EQ(small.max_dy, 4);  // 3.84 px
+  EXPECT_EQ(metricShiftOptions(f128, 0.0, 0.0).max_dx, 0);
+  EXPECT_THROW(metricShiftOptions(f128, -0.01, 0.0), InvalidInputError);
+  EXPECT_THROW(metricShiftOptions(f128, std::nan(""), 0.0), InvalidInputError);
+  EXPECT_THROW(metricShiftOptions(f128, 0.01, 0.01, 0), InvalidInputError);
 }

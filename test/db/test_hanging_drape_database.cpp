@@ -658,3 +658,33 @@ TEST(HangingDrapeDatabase, ViewPngsOfFractionalAnglesDoNotOverwriteEachOther) {
   EXPECT_EQ(files, 5u);
   std::filesystem::remove_all(dir);
 }
+
+TEST(HangingDrapeDatabase, MatchIndexLatticeSpansRowsOfSeveralBuilds) {
+  // Two builds with other settings (parameter texts) and other hold points: each stored its own
+  // lattice ranks. The index must rank the hold points it loaded together; with the stored ranks,
+  // (0, 0.1) and (0.2, 0.1) were "neighbours" (ranks 0 and 1 of the first build) although (0.1, 0.1)
+  // of the second build lies between them.
+  TempDatabase t("lattice_union");
+  HangingDrapeDatabase db(t.path());
+  const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
+  NewSimulation a0 = newRow(tex, Vec2(0.0, 0.1), "build A\n"), a1 = newRow(tex, Vec2(0.2, 0.1), "build A\n");
+  a1.lattice_j = 1;
+  NewSimulation b0 = newRow(tex, Vec2(0.1, 0.1), "build B\n");  // lattice (0, 0) of its own build
+  const auto ids = db.addSimulations({a0, a1, b0});
+  db.storeResults({makeResult(ids[0], 2), makeResult(ids[1], 2), makeResult(ids[2], 2)});
+  MatchIndexOptions o;
+  o.textile = "towel";
+  const DrapeMatchIndex index = loadDrapeMatchIndex(db, o);
+  ASSERT_EQ(index.hold_points.size(), 3u);
+  const auto c0 = index.classOf("towel", Vec2(0.0, 0.1)), c1 = index.classOf("towel", Vec2(0.1, 0.1)),
+             c2 = index.classOf("towel", Vec2(0.2, 0.1));
+  ASSERT_TRUE(c0 && c1 && c2);
+  EXPECT_TRUE(index.classesNeighbour(*c0, *c1, false));
+  EXPECT_TRUE(index.classesNeighbour(*c1, *c2, false));
+  EXPECT_FALSE(index.classesNeighbour(*c0, *c2, false));
+  EXPECT_FALSE(index.classesNeighbour(*c0, *c2, true));
+  for (const auto& h : index.hold_points) {
+    EXPECT_EQ(h.lattice_i, 0);
+    EXPECT_EQ(h.lattice_j, static_cast<int>(std::lround(h.hold.x() / 0.1)));
+  }
+}

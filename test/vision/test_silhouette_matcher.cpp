@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <random>
+#include <set>
 #include <stdexcept>
 #include <string>
 
@@ -254,6 +256,98 @@ TEST(SilhouetteMatcher, FusionOfOneImageEqualsTheSingleQuery) {
     EXPECT_EQ(r.matches[i].entry, f.matches[i].images[0].entry);
     EXPECT_EQ(r.matches[i].dx, f.matches[i].images[0].dx);
   }
+}
+
+TEST(SilhouetteMatcher, CoarserGroupsAggregateTheBestEntryOfTheirMembers) {
+  // group_of_entry merges (textile, hold point) pairs into coarser groups (e.g. the hold points a
+  // symmetry makes indistinguishable): one result per group, its best entry, exact as brute force.
+  std::mt19937 rng(5150);
+  for (const int w : {64, 100}) {  // one and two words per row
+    SilhouetteMatcher db = randomDatabase(w, 64, 14, 5, rng, /*duplicates=*/true);
+    std::vector<std::uint32_t> groups(db.size());
+    for (std::size_t e = 0; e < db.size(); ++e) groups[e] = static_cast<std::uint32_t>(db.groupOf(e) % 4);
+    for (int q = 0; q < 4; ++q) {
+      const BitMask query = q == 0 ? db.entry(7).mask.shifted(2, -1) : blob(w, 64, rng);
+      for (const int k : {1, 2, 4}) {
+        MatchOptions o;
+        o.top_k = k;
+        o.max_dx = 6;
+        o.max_dy = 3;
+        o.group_of_entry = &groups;
+        const QueryResult pruned = db.query(query, o);
+        o.exhaustive = true;
+        const QueryResult brute = db.query(query, o);
+        expectSameResults(pruned, brute, "w" + std::to_string(w) + " q" + std::to_string(q) + " k" + std::to_string(k));
+        // Reference: best IoU per coarse group over all its entries, by plain bestShiftIou.
+        std::vector<double> ref(4, 0.0);
+        for (std::size_t e = 0; e < db.size(); ++e)
+          ref[groups[e]] = std::max(ref[groups[e]], bestShiftIou(query, db.entry(e).mask, 6, 3).score);
+        std::vector<double> sorted = ref;
+        std::sort(sorted.rbegin(), sorted.rend());
+        ASSERT_EQ(pruned.matches.size(), static_cast<std::size_t>(k));
+        for (int i = 0; i < k; ++i) {
+          EXPECT_EQ(pruned.matches[static_cast<std::size_t>(i)].score, sorted[static_cast<std::size_t>(i)]);
+          EXPECT_EQ(groups[pruned.matches[static_cast<std::size_t>(i)].entry] < 4, true);
+        }
+        std::set<std::uint32_t> seen;
+        for (const auto& m : pruned.matches) EXPECT_TRUE(seen.insert(groups[m.entry]).second);  // one per group
+      }
+    }
+    std::vector<std::uint32_t> wrong(db.size() - 1, 0);
+    MatchOptions bad;
+    bad.group_of_entry = &wrong;
+    EXPECT_THROW(db.query(db.entry(0).mask, bad), std::invalid_argument);
+  }
+}
+
+TEST(SilhouetteMatcher, FusionRanksCoarseGroupsByTheirBestMember) {
+  std::mt19937 rng(909);
+  SilhouetteMatcher db = randomDatabase(64, 64, 12, 6, rng);
+  std::vector<std::uint32_t> groups(db.size());
+  for (std::size_t e = 0; e < db.size(); ++e) groups[e] = static_cast<std::uint32_t>(db.groupOf(e) / 3);  // 4 groups
+  for (int q = 0; q < 3; ++q) {
+    std::vector<FusionImage> imgs = {{blob(64, 64, rng), 0.0}, {blob(64, 64, rng), 120.0}};
+    if (q == 0) imgs = {{db.entry(3).mask, 0.0}, {db.entry(5).mask, 120.0}};
+    // Reference: every member group fused on its own (exhaustive), then the best member per coarse group.
+    MatchOptions all;
+    all.top_k = static_cast<int>(db.numGroups());
+    all.max_dx = 5;
+    all.max_dy = 2;
+    all.exhaustive = true;
+    const FusedQueryResult members = db.queryFused(imgs, all);
+    std::vector<double> ref(4, -1.0);
+    for (const FusedMatch& fm : members.matches) {
+      const std::uint32_t c = groups[fm.images[0].entry];
+      ref[c] = std::max(ref[c], fm.score);
+    }
+    std::vector<double> sorted;
+    for (double v : ref)
+      if (v > 0) sorted.push_back(v);
+    std::sort(sorted.rbegin(), sorted.rend());
+    for (const bool exhaustive : {false, true}) {
+      MatchOptions o;
+      o.top_k = 3;
+      o.max_dx = 5;
+      o.max_dy = 2;
+      o.exhaustive = exhaustive;
+      o.group_of_entry = &groups;
+      const FusedQueryResult r = db.queryFused(imgs, o);
+      ASSERT_EQ(r.matches.size(), std::min<std::size_t>(3, sorted.size()));
+      std::set<std::uint32_t> seen;
+      for (std::size_t i = 0; i < r.matches.size(); ++i) {
+        EXPECT_EQ(r.matches[i].score, sorted[i]) << "q" << q << " rank " << i << " exhaustive " << exhaustive;
+        const std::uint32_t c = groups[r.matches[i].images[0].entry];
+        EXPECT_TRUE(seen.insert(c).second);
+        for (const auto& im : r.matches[i].images) EXPECT_EQ(groups[im.entry], c);  // one member's views
+      }
+    }
+  }
+  std::vector<std::uint32_t> split = groups;
+  split[0] = 3;
+  split[1] = 0;  // entries 0 and 1 share a (textile, hold point) but not a group
+  MatchOptions bad;
+  bad.group_of_entry = &split;
+  EXPECT_THROW(db.queryFused({{db.entry(0).mask, 0.0}}, bad), std::invalid_argument);
 }
 
 TEST(SilhouetteMatcher, PrunedFusionEqualsExhaustiveFusion) {

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,13 @@ struct DrapeBuildConfig {
   /// Simulate only the fundamental domain and derive the mirrored hold points (needs a particle grid
   /// that is symmetric too; otherwise every hold point is simulated).
   bool use_symmetry = true;
+  /// Hold-point neighbourhoods ("brackets"). false: every hold point pins the particle nearest to it
+  /// (the thesis; a point between particles moves by up to d/sqrt(2)). true: every hold point gets up
+  /// to four simulations, one per corner of the particle-grid cell that contains it (1 or 2 when it
+  /// lies on a grid line), each stored as its own row of that hold point, so the hold point's class in
+  /// the index covers the shapes of the particles around it instead of one arbitrarily snapped one.
+  /// The corners are built as four passes with their own parameter texts ("hold_bracket: k").
+  bool bracket_hold_points = false;
 
   // ---- simulation ----
   Real spacing = 0.02;              ///< particle grid spacing d [m]
@@ -103,16 +111,31 @@ class DrapeDatabaseBuilder {
   const TextileSymmetry& symmetry() const { return symmetry_; }
   bool symmetricGrid() const { return symmetric_grid_; }
 
-  /// Canonical text of all simulation and view settings (the `parameters` column).
-  static std::string parametersText(const DrapeBuildConfig& config);
+  /// Canonical text of all simulation and view settings (the `parameters` column). `bracket_corner`
+  /// >= 0 names the bracket pass (bracket_hold_points); -1: nearest-particle holds.
+  static std::string parametersText(const DrapeBuildConfig& config, int bracket_corner = -1);
+  /// Every parameter text a build of `config` writes: one, or one per bracket corner (0..3).
+  static std::vector<std::string> parameterTexts(const DrapeBuildConfig& config);
+  /// The textile-frame point whose nearest particle a bracket pass pins for hold point `hold`: the
+  /// corner (bit 0: upper column, bit 1: upper row) of the grid cell containing `hold`; `hold` itself
+  /// for corner -1. Empty if that corner duplicates a lower corner (hold on a grid line) or is not a
+  /// particle of the textile.
+  static std::optional<Vec2> bracketHold(const ParticleGrid& grid, const Vec2& hold, int corner);
+  /// The plan of one bracket pass (corner 0..3): the hold points whose corner particle exists and is
+  /// not a duplicate, with their mirror images (the full plan for corner -1).
+  std::vector<PlannedHoldPoint> passPlan(int corner) const;
   /// The scene of one hold point under `config`.
   static DrapeSceneSpec sceneSpec(const DrapeBuildConfig& config, const Vec2& hold);
 
  private:
+  DrapeBuildReport buildPass(int corner, const std::vector<PlannedHoldPoint>& plan);
+
   HangingDrapeDatabase& db_;
   DrapeBuildConfig config_;
   TextileSymmetry symmetry_;
   bool symmetric_grid_ = false;
+  std::vector<Vec2> canonical_;   ///< the simulated (fundamental-domain) hold points
+  ParticleGrid grid_;             ///< the particle grid of every simulation
   std::vector<PlannedHoldPoint> plan_;
 };
 

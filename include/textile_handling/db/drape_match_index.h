@@ -28,6 +28,9 @@ struct IndexedHoldPoint {
   std::int64_t simulation_id = 0;
   std::string textile;
   Vec2 hold = Vec2::Zero();
+  /// Row and column on the hold-point lattice of the loaded index: the rank of y and of x among the
+  /// distinct coordinates of all loaded hold points of the textile (recomputed on loading, so rows of
+  /// several builds share one lattice).
   int lattice_i = 0, lattice_j = 0;
   MirrorKind source = MirrorKind::kIdentity;
   std::size_t class_index = 0;
@@ -47,6 +50,9 @@ struct DrapeMatchIndex {
   std::vector<IndexedHoldPoint> hold_points;
   std::vector<HoldPointClass> classes;
   std::vector<std::int64_t> entry_view_ids;      ///< per matcher entry
+  /// Class of every loaded matcher entry (index into classes): single-image queries aggregate per
+  /// class in the matcher itself (SilhouetteMatcher MatchOptions::group_of_entry).
+  std::vector<std::uint32_t> entry_class;
   std::map<std::string, std::size_t> hold_point_of_group;  ///< matcher hold_point_id -> hold_points index
   std::map<std::string, TextileSymmetry> symmetry;          ///< per textile name
   double load_seconds = 0;
@@ -84,6 +90,16 @@ struct DrapeQueryResult {
   double margin = 0;
   vision::MatchStats stats;
 };
+
+/// The thesis's shift search range, +-30 px horizontally and +-5 px vertically at 64 px per metre, in
+/// metres (for frames of other resolutions).
+constexpr double kThesisShiftXMetres = 30.0 / 64.0;
+constexpr double kThesisShiftYMetres = 5.0 / 64.0;
+/// Match options with the shift range given in metres, converted to whole pixels of `frame` (rounded up;
+/// the known metric scale makes a range in metres mean the same at every canonical resolution).
+/// Throws InvalidInputError for negative or non-finite ranges or top_k < 1.
+vision::MatchOptions metricShiftOptions(const vision::CanonicalFrame& frame, double max_dx_m, double max_dy_m,
+                                        int top_k = 5);
 
 /// Top-k hold-point classes for one canonical mask (options as SilhouetteMatcher::query).
 DrapeQueryResult queryDrape(const DrapeMatchIndex& index, const vision::BitMask& mask,

@@ -199,6 +199,7 @@ class HangingDrapeDatabase {
 
   std::string path_;
   bool read_only_ = false;
+  int busy_timeout_ms_ = 10000;
   mutable SqliteConnection conn_;
   mutable std::mutex mutex_;
 };

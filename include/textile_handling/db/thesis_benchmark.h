@@ -1,6 +1,8 @@
 // `drape_db bench`: the thesis's full-pipeline recognition experiment (section 11.6 of the notes)
 // reproduced on held-out renders. A 64 x 46 cm cotton towel; 36 hold points (a 6 x 6 grid over one
-// quadrant, edges and symmetry axes included) simulated and mirrored to the other quadrants; held-out
+// quadrant, edges and symmetry axes included), each simulated at the particles of its grid cell
+// (bracket_hold_points) and mirrored to the other quadrants, silhouettes of 128 x 128 px over 1 m,
+// a shift search of +-3 x +-2 cm (the defaults below; docs/database.md gives the reasons); held-out
 // shapes of the same towel simulated with a perturbed material and at another particle resolution, at
 // the mirror images of the 36 points in random quadrants; camera renders between the stored view angles
 // with pixel noise; single-image and two-image accuracy, neighbour confusion, build and query times; and
@@ -10,6 +12,9 @@
 #include <cstdint>
 #include <string>
 #include <vector>
+
+#include "textile_handling/vision/silhouette_matcher.h"
+#include "textile_handling/vision/silhouette_renderer.h"
 
 namespace textile_handling {
 namespace db {
@@ -22,6 +27,20 @@ struct ThesisBenchmarkConfig {
   int grid_nx = 6, grid_ny = 6;
   double spacing = 0.02;       ///< database particle spacing [m]
   double heldout_spacing = 0.016;  ///< held-out resolution [m]
+  /// Canonical frame of the stored silhouettes: frame_px x frame_px pixels over frame_metres x
+  /// frame_metres below the hold point.
+  /// Database hold points simulated at the corners of their particle-grid cells
+  /// (DrapeBuildConfig::bracket_hold_points); the held-out shapes always pin the nearest particle.
+  bool bracket_hold_points = true;
+  /// Simulated-time cap of every simulation [s] (slow-settling hold points need more than the builder's
+  /// default at fine particle spacings).
+  double max_time_s = 60.0;
+  int frame_px = 128;
+  double frame_metres = 1.0;
+  /// Shift search range in metres (converted to pixels of the frame, rounded up): the hold point is
+  /// located in the image, so the silhouettes only need aligning by the error of that location.
+  /// Negative: the thesis's +-30 / +-5 px at 64 px per metre (scaled to the frame).
+  double max_shift_x_m = 0.03, max_shift_y_m = 0.02;
   int pairs_per_shape = 4;     ///< image pairs per held-out shape
   int entries_10k = 10000;     ///< silhouettes of the query-time row
   std::uint64_t seed = 1;
@@ -42,6 +61,12 @@ struct BenchmarkRow {
   int simulations = 0;         ///< simulations run for the database
   std::string notes;
 };
+
+/// The canonical frame of the benchmark's silhouettes (frame_px over frame_metres, top margin 2 px per
+/// 64 px). Throws std::invalid_argument for a bad size.
+vision::CanonicalFrame benchmarkFrame(const ThesisBenchmarkConfig& config);
+/// The shift search range of the benchmark in pixels of benchmarkFrame() (metric ranges rounded up).
+vision::MatchOptions benchmarkMatchOptions(const ThesisBenchmarkConfig& config);
 
 /// Runs the benchmark, prints a summary to stdout, writes the CSV files and returns the rows.
 /// Throws on failure (database, I/O).

@@ -35,6 +35,13 @@ struct MatchOptions {
   /// Reference mode: evaluate every entry at every shift with the plain bit-mask routines, no
   /// pruning (slow; for tests and for checking the pruned search).
   bool exhaustive = false;
+  /// Optional coarser aggregation: when set, results are per value of (*group_of_entry)[e] (one result
+  /// per such group: its best entry, or for queryFused its best (textile, hold point) member, whose
+  /// views are still fused on their own) instead of per (textile, hold point). E.g. all hold points
+  /// that a symmetry makes indistinguishable as one group, so that top-k means k such groups and the
+  /// pruning works on them. Size must equal the database size; for queryFused all entries of one
+  /// (textile, hold point) must share a group. Not owned.
+  const std::vector<std::uint32_t>* group_of_entry = nullptr;
 };
 
 struct MatchResult {
@@ -114,9 +121,13 @@ class SilhouetteMatcher {
   SilhouetteEntry entry(std::size_t i) const;
   /// Number of distinct (textile, hold point) pairs.
   std::size_t numGroups() const { return groups_.size(); }
+  /// The (textile, hold point) group of entry i (0 .. numGroups() - 1), in order of first appearance.
+  std::size_t groupOf(std::size_t i) const { return static_cast<std::size_t>(meta_.at(i).group); }
 
-  /// Top-k (textile, hold point) matches of one mask. Throws std::invalid_argument for an empty
-  /// database, a mask of a different size, an all-zero mask, or bad options (negative shifts, top_k < 1).
+  /// Top-k (textile, hold point) matches of one mask (or top-k groups of options.group_of_entry; the
+  /// result names the best entry's textile and hold point). Throws std::invalid_argument for an empty
+  /// database, a mask of a different size, an all-zero mask, or bad options (negative shifts, top_k < 1,
+  /// a group_of_entry of the wrong size).
   QueryResult query(const BitMask& mask, const MatchOptions& options = {}) const;
 
   /// Multi-image fusion (docs/vision.md): for each (textile, hold point) and each of its stored view
