@@ -58,6 +58,17 @@ void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r,
      << "assembly_ms_per_step: " << per_step(r.assembly_ms) << "\n"
      << "solve_ms_per_step: " << per_step(r.solve_ms) << "\n"
      << "intersecting_pairs: " << pairs << "\n";
+  if (scene.self_collision_pass) {
+    // Where the self-collision time goes (ms per accepted step), docs/collision.md.
+    const SelfCollisionStats& t = scene.self_collision_pass->totalStats();
+    os << "self_collision_breakdown_ms_per_step:\n"
+      << "  broad_phase: " << per_step(t.broad_ms) << "\n"
+      << "  proximity_detect: " << per_step(t.proximity_detect_ms) << "\n"
+      << "  proximity_total: " << per_step(t.proximity_ms) << "\n"
+      << "  crossing_detect: " << per_step(t.detect_ms) << "\n"
+      << "  resolve: " << per_step(t.resolve_ms) << "\n"
+      << "self_collision_candidate_list_builds: " << t.candidate_list_builds << "\n";
+  }
 }
 
 }  // namespace
