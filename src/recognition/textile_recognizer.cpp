@@ -81,6 +81,16 @@ void RecognizerOptions::validate() const {
   if (!(r.depth_yaw_range_deg >= 0 && r.depth_yaw_range_deg <= 180) || !(r.depth_yaw_step_deg > 0 && r.depth_yaw_step_deg <= 30))
     bad("refinement.depth_yaw_range_deg must be in [0, 180] and depth_yaw_step_deg in (0, 30]");
   if (r.depth_min_pixels < 1) bad("refinement.depth_min_pixels must be >= 1");
+  const ShapeFitOptions& sf = shape_fit;
+  if (sf.iterations < 1 || sf.iterations > 100) bad("shape_fit.iterations must be in 1..100");
+  if (!(sf.edge_weight > 0) || !std::isfinite(sf.edge_weight)) bad("shape_fit.edge_weight must be finite and > 0");
+  if (!(sf.anchor_weight >= 0) || !std::isfinite(sf.anchor_weight) || !(sf.silhouette_weight >= 0) ||
+      !std::isfinite(sf.silhouette_weight))
+    bad("shape_fit.anchor_weight and silhouette_weight must be finite and >= 0");
+  if (!(sf.visibility_slack_m > 0) || !(sf.max_correspondence_m > 0) || !std::isfinite(sf.max_correspondence_m) ||
+      !std::isfinite(sf.visibility_slack_m))
+    bad("shape_fit.visibility_slack_m and max_correspondence_m must be finite and > 0");
+  if (sf.uncovered_step_px < 1 || sf.uncovered_step_px > 64) bad("shape_fit.uncovered_step_px must be in 1..64");
   if (!(r.depth_truncation_m > 0) || !std::isfinite(r.depth_truncation_m)) bad("refinement.depth_truncation_m must be finite and > 0");
   if (!(r.depth_member_slack >= 0 && r.depth_member_slack <= 1) || !(r.depth_weight_per_m >= 0) || !std::isfinite(r.depth_weight_per_m))
     bad("refinement.depth_member_slack must be in [0, 1] and depth_weight_per_m finite and >= 0");
@@ -833,8 +843,22 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   const auto sp = shape(*st, w.simulation_id, w.hold_point);
   try {
     const VecX x = w.reflected ? reflectAcrossView(sp->positions, sp->held, w.reflection_view_deg) : sp->positions;
-    res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rotationFor(w.view_angle_deg, 0),
-                                        imgs[0].g, o.grasp);
+    const double rot0 = rotationFor(w.view_angle_deg, 0);
+    if (o.shape_fit.enabled && !imgs[0].depth_m.empty()) {
+      // Deform the matched shape onto the first image's measured surface, then read the poses from it
+      // (in H already: rotation 0 about the held particle, which the fit keeps at the hold point).
+      const HoldGeometry& g0 = imgs[0].g;
+      const VecX ph = placeInHoldFrame(x, sp->held, rot0);
+      VecX pc(ph.size());
+      for (Eigen::Index v = 0; v < ph.size() / 3; ++v) pc.segment<3>(3 * v) = g0.holdToCamera(ph.segment<3>(3 * v));
+      const VecX fitted = fitShapeToDepth(pc, sp->triangles, sp->held, imgs[0].depth_m, imgs[0].mask, g0.intrinsics,
+                                          o.shape_fit, &res.shape_fit);
+      VecX xh(fitted.size());
+      for (Eigen::Index v = 0; v < fitted.size() / 3; ++v) xh.segment<3>(3 * v) = g0.cameraToHold(fitted.segment<3>(3 * v));
+      res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, xh, sp->held, 0.0, g0, o.grasp);
+    } else {
+      res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);
+    }
     res.frame = wli.index.frame;
     res.query_masks = canonical(wli.index.frame);
     res.matched_mask = renderFor(x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);

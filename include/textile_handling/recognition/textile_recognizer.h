@@ -33,6 +33,7 @@
 #include "textile_handling/recognition/grasp_poses.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/recognition/segmentation.h"
+#include "textile_handling/recognition/shape_fitting.h"
 #include "textile_handling/vision/silhouette_matcher.h"
 
 namespace textile_handling {
@@ -89,6 +90,9 @@ struct RecognizerOptions {
   CameraGeometryOptions geometry;
   CanonicalisationOptions canonicalisation;
   RefinementOptions refinement;
+  /// With depth in the first image: the chosen shape is deformed onto the measured surface before the
+  /// grasp poses are read (shape_fitting.h).
+  ShapeFitOptions shape_fit;
   GraspPoseOptions grasp;
   /// Stored rest shapes kept in memory (loaded on demand).
   std::size_t mesh_cache_size = 64;
@@ -165,6 +169,8 @@ struct RecognitionResult {
   double reflection_view_deg = 0;
   std::vector<HoldCandidate> top_k;     ///< best first (top_k[0] is the winner)
   std::vector<GraspPose> grasp_poses;   ///< hold frame of the first image (+ camera frame copies)
+  /// The fit of the chosen shape to the first image's depth (applied = false: stored shape as matched).
+  ShapeFitReport shape_fit;
 
   // ---- diagnostics ----
   std::vector<HoldGeometry> geometry;   ///< per image

@@ -1,0 +1,255 @@
+#include "textile_handling/recognition/shape_fitting.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <stdexcept>
+#include <utility>
+
+#include <Eigen/SparseCholesky>
+#include <Eigen/SparseCore>
+#include <opencv2/imgproc.hpp>
+
+#include "textile_handling/vision/shaded_renderer.h"
+
+namespace textile_handling {
+namespace recognition {
+
+namespace {
+
+bool validDepth(float z) { return std::isfinite(z) && z > 0; }
+
+// Bilinear depth at (u, v) from the four surrounding pixels, all inside the mask, valid and within
+// `discontinuity` of each other (else no sample: an edge between layers or the outline).
+bool sampleDepth(const cv::Mat& depth, const cv::Mat& mask, double u, double v, double discontinuity, double* z) {
+  const int x0 = static_cast<int>(std::floor(u)), y0 = static_cast<int>(std::floor(v));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= depth.cols || y0 + 1 >= depth.rows) return false;
+  double zs[4];
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int k = 0; k < 4; ++k) {
+    const int x = x0 + (k & 1), y = y0 + (k >> 1);
+    const float d = depth.at<float>(y, x);
+    if (!mask.at<std::uint8_t>(y, x) || !validDepth(d)) return false;
+    zs[k] = d;
+    lo = std::min(lo, zs[k]);
+    hi = std::max(hi, zs[k]);
+  }
+  if (hi - lo > discontinuity) return false;
+  const double fx = u - x0, fy = v - y0;
+  *z = (1 - fy) * ((1 - fx) * zs[0] + fx * zs[1]) + fy * ((1 - fx) * zs[2] + fx * zs[3]);
+  return true;
+}
+
+Vec3 backProject(const vision::PinholeIntrinsics& k, double u, double v, double z) {
+  return Vec3((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z);
+}
+
+}  // namespace
+
+VecX fitShapeToDepth(const VecX& x0, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
+                     const cv::Mat& depth, const cv::Mat& mask, const vision::PinholeIntrinsics& k,
+                     const ShapeFitOptions& o, ShapeFitReport* report) {
+  ShapeFitReport rep;
+  const Index n = static_cast<Index>(x0.size() / 3);
+  if (x0.size() % 3 != 0 || n == 0) throw std::invalid_argument("fitShapeToDepth: positions must be 3 per vertex");
+  if (fixed_vertex >= n) throw std::invalid_argument("fitShapeToDepth: fixed vertex out of range");
+  if (depth.type() != CV_32FC1 || mask.type() != CV_8UC1 || depth.size() != mask.size() || depth.cols != k.width ||
+      depth.rows != k.height)
+    throw std::invalid_argument("fitShapeToDepth: depth (CV_32FC1) and mask (CV_8UC1) must have the intrinsics' size");
+  if (!(o.iterations >= 1) || !(o.edge_weight > 0) || !(o.anchor_weight >= 0) || !(o.silhouette_weight >= 0) ||
+      !(o.max_correspondence_m > 0) || !(o.uncovered_step_px >= 1))
+    throw std::invalid_argument("fitShapeToDepth: invalid options");
+  for (const auto& t : triangles)
+    for (Index v : t)
+      if (v < 0 || v >= n) throw std::invalid_argument("fitShapeToDepth: triangle index out of range");
+
+  // Unique mesh edges.
+  std::vector<std::pair<Index, Index>> edges;
+  {
+    std::set<std::pair<Index, Index>> seen;
+    for (const auto& t : triangles)
+      for (int a = 0; a < 3; ++a) {
+        const Index i = t[static_cast<size_t>(a)], j = t[static_cast<size_t>((a + 1) % 3)];
+        seen.emplace(std::min(i, j), std::max(i, j));
+      }
+    edges.assign(seen.begin(), seen.end());
+  }
+
+  // Nearest mask pixel of every pixel (for vertices projecting outside the mask).
+  cv::Mat not_mask = mask == 0;  // 255 outside
+  cv::Mat dist, labels;
+  cv::distanceTransform(not_mask, dist, labels, cv::DIST_L2, cv::DIST_MASK_PRECISE, cv::DIST_LABEL_PIXEL);
+  std::vector<cv::Point> label_pixel(1, cv::Point(-1, -1));
+  {
+    // Labels number the zero pixels of not_mask (the mask pixels) in scan order, starting at 1.
+    for (int y = 0; y < mask.rows; ++y)
+      for (int x = 0; x < mask.cols; ++x)
+        if (mask.at<std::uint8_t>(y, x)) label_pixel.emplace_back(x, y);
+  }
+  if (label_pixel.size() < 2) {
+    rep.note = "empty mask";
+    if (report) *report = rep;
+    return x0;
+  }
+
+  VecX x = x0;
+  const double lambda = o.edge_weight, mu = o.anchor_weight;
+  // The system matrix's constant part: lambda L + mu I (+ the data weights per iteration).
+  for (int it = 0; it < o.iterations; ++it) {
+    // Visibility by z-buffer.
+    vision::ShadedRenderOptions rop;
+    rop.intrinsics = k;
+    rop.noise_sigma = 0;
+    rop.render_mask = true;
+    rop.render_depth = true;
+    const vision::ShadedImage img = vision::renderShaded(x, triangles, rop);
+    std::vector<double> w(static_cast<size_t>(n), 0.0);
+    std::vector<Vec3> target_sum(static_cast<size_t>(n), Vec3::Zero());
+    std::vector<Vec2> proj(static_cast<size_t>(n), Vec2(-1, -1));
+    std::vector<char> visible(static_cast<size_t>(n), 0);
+    int depth_corr = 0, sil_corr = 0, n_visible = 0;
+    double residual = 0;
+    for (Index i = 0; i < n; ++i) {
+      const Vec3 p = x.segment<3>(3 * i);
+      if (!(p.z() > 0.01)) continue;
+      const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
+      const int iu = static_cast<int>(std::lround(u)), iv = static_cast<int>(std::lround(v));
+      if (iu < 0 || iv < 0 || iu >= k.width || iv >= k.height) continue;
+      const float zr = img.depth.at<float>(iv, iu);
+      if (validDepth(zr) && p.z() > zr + o.visibility_slack_m) continue;  // hidden behind the mesh
+      visible[static_cast<size_t>(i)] = 1;
+      proj[static_cast<size_t>(i)] = Vec2(u, v);
+      ++n_visible;
+      if (i == fixed_vertex) continue;
+      if (mask.at<std::uint8_t>(iv, iu)) {
+        double zm = 0;
+        if (!sampleDepth(depth, mask, u, v, o.depth_discontinuity_m, &zm)) continue;
+        const Vec3 t = backProject(k, u, v, zm);
+        const double d = (t - p).norm();
+        if (d > o.max_correspondence_m) continue;
+        // Cauchy weight: a wrong layer or a stray pixel pulls little.
+        const double wr = 1.0 / (1.0 + (d / o.robust_scale_m) * (d / o.robust_scale_m));
+        w[static_cast<size_t>(i)] += wr;
+        target_sum[static_cast<size_t>(i)] += wr * t;
+        residual += d;
+        ++depth_corr;
+      } else if (o.silhouette_weight > 0 && dist.at<float>(iv, iu) > o.silhouette_slack_px) {
+        const int lbl = labels.at<int>(iv, iu);
+        if (lbl <= 0 || lbl >= static_cast<int>(label_pixel.size())) continue;
+        const cv::Point q = label_pixel[static_cast<size_t>(lbl)];
+        const float zm = depth.at<float>(q.y, q.x);
+        const double z = validDepth(zm) && std::abs(zm - p.z()) <= o.max_correspondence_m ? zm : p.z();
+        const Vec3 t = backProject(k, q.x, q.y, z);
+        if ((t - p).norm() > 3 * o.max_correspondence_m) continue;
+        w[static_cast<size_t>(i)] += o.silhouette_weight;
+        target_sum[static_cast<size_t>(i)] += o.silhouette_weight * t;
+        ++sil_corr;
+      }
+    }
+    // Uncovered mask pixels pull the nearest visible vertex (image distance), via a coarse grid of the
+    // projected visible vertices.
+    if (o.silhouette_weight > 0 && n_visible > 0) {
+      const int cell = 8;
+      const int gw = (k.width + cell - 1) / cell, gh = (k.height + cell - 1) / cell;
+      std::vector<std::vector<Index>> grid(static_cast<size_t>(gw * gh));
+      for (Index i = 0; i < n; ++i)
+        if (visible[static_cast<size_t>(i)]) {
+          const Vec2& q = proj[static_cast<size_t>(i)];
+          const int gx = std::clamp(static_cast<int>(q.x()) / cell, 0, gw - 1), gy = std::clamp(static_cast<int>(q.y()) / cell, 0, gh - 1);
+          grid[static_cast<size_t>(gy * gw + gx)].push_back(i);
+        }
+      // Only pixels clearly outside the rendered mesh (beyond silhouette_slack_px): the rasterisation of a
+      // correct shape differs from the observation by a pixel along the whole outline.
+      cv::Mat rendered_far;
+      cv::distanceTransform(img.mask == 0, rendered_far, cv::DIST_L2, 3);
+      for (int y = 0; y < mask.rows; y += o.uncovered_step_px)
+        for (int xpx = 0; xpx < mask.cols; xpx += o.uncovered_step_px) {
+          if (!mask.at<std::uint8_t>(y, xpx) || rendered_far.at<float>(y, xpx) <= o.silhouette_slack_px) continue;
+          const float zm = depth.at<float>(y, xpx);
+          if (!validDepth(zm)) continue;
+          const int gx = xpx / cell, gy = y / cell;
+          Index best = -1;
+          double best_d2 = std::numeric_limits<double>::infinity();
+          for (int ring = 0; ring <= 4 && best < 0; ++ring)  // grow the search until a vertex is found
+            for (int yy = std::max(0, gy - ring); yy <= std::min(gh - 1, gy + ring); ++yy)
+              for (int xx = std::max(0, gx - ring); xx <= std::min(gw - 1, gx + ring); ++xx)
+                for (Index i : grid[static_cast<size_t>(yy * gw + xx)]) {
+                  const double d2 = (proj[static_cast<size_t>(i)] - Vec2(xpx, y)).squaredNorm();
+                  if (d2 < best_d2) {
+                    best_d2 = d2;
+                    best = i;
+                  }
+                }
+          if (best < 0 || best == fixed_vertex) continue;
+          const Vec3 t = backProject(k, xpx, y, zm);
+          if ((t - x.segment<3>(3 * best)).norm() > 3 * o.max_correspondence_m) continue;
+          const double ws = o.silhouette_weight * o.uncovered_step_px * o.uncovered_step_px / 4.0;
+          w[static_cast<size_t>(best)] += ws;
+          target_sum[static_cast<size_t>(best)] += ws * t;
+          ++sil_corr;
+        }
+    }
+    if (it == 0) {
+      rep.mean_depth_residual_before_m = depth_corr > 0 ? residual / depth_corr : -1;
+      if (depth_corr < std::max<Index>(10, n / 10)) {
+        rep.note = "too few depth correspondences (" + std::to_string(depth_corr) + ")";
+        if (report) *report = rep;
+        return x0;
+      }
+    }
+    rep.visible_vertices = n_visible;
+    rep.depth_correspondences = depth_corr;
+    rep.silhouette_correspondences = sil_corr;
+    rep.mean_depth_residual_after_m = depth_corr > 0 ? residual / depth_corr : -1;
+
+    // Assemble and solve (W + lambda L + mu I) X = W t + lambda L X0 + mu X0, held vertex fixed.
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(static_cast<size_t>(n + 4 * static_cast<Index>(edges.size())));
+    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
+    for (Index i = 0; i < n; ++i) {
+      const double wi = w[static_cast<size_t>(i)];
+      trip.emplace_back(i, i, wi + mu);
+      rhs.row(i) = (target_sum[static_cast<size_t>(i)] + mu * x0.segment<3>(3 * i)).transpose();
+    }
+    for (const auto& [i, j] : edges) {
+      trip.emplace_back(i, i, lambda);
+      trip.emplace_back(j, j, lambda);
+      trip.emplace_back(i, j, -lambda);
+      trip.emplace_back(j, i, -lambda);
+      const Vec3 e0 = x0.segment<3>(3 * i) - x0.segment<3>(3 * j);
+      rhs.row(i) += lambda * e0.transpose();
+      rhs.row(j) -= lambda * e0.transpose();
+    }
+    if (fixed_vertex >= 0) {  // a stiff spring to its matched position
+      trip.emplace_back(fixed_vertex, fixed_vertex, 1e8);
+      rhs.row(fixed_vertex) += 1e8 * x0.segment<3>(3 * fixed_vertex).transpose();
+    }
+    Eigen::SparseMatrix<double> a(n, n);
+    a.setFromTriplets(trip.begin(), trip.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(a);
+    if (ldlt.info() != Eigen::Success) {
+      rep.note = "factorisation failed";
+      break;
+    }
+    const Eigen::MatrixXd sol = ldlt.solve(rhs);
+    if (!sol.allFinite()) {
+      rep.note = "non-finite solution";
+      break;
+    }
+    for (Index i = 0; i < n; ++i) x.segment<3>(3 * i) = sol.row(i).transpose();
+    rep.iterations = it + 1;
+    rep.applied = true;
+  }
+  if (!rep.applied) {
+    if (report) *report = rep;
+    return x0;
+  }
+  for (Index i = 0; i < n; ++i)
+    rep.max_displacement_m = std::max(rep.max_displacement_m, (x.segment<3>(3 * i) - x0.segment<3>(3 * i)).norm());
+  if (report) *report = rep;
+  return x;
+}
+
+}  // namespace recognition
+}  // namespace textile_handling

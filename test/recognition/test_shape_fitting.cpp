@@ -1,0 +1,126 @@
+// fitShapeToDepth(): a matched shape deformed onto a measured depth image. A curved sheet hanging in
+// front of a VGA camera is the truth; its rendered depth and mask are the measurement.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "textile_handling/recognition/shape_fitting.h"
+#include "textile_handling/vision/shaded_renderer.h"
+
+using namespace textile_handling;
+using namespace textile_handling::recognition;
+
+namespace {
+
+struct Sheet {
+  VecX x;
+  std::vector<vision::Triangle> triangles;
+  Index top = 0;  // held vertex (top middle)
+};
+
+vision::PinholeIntrinsics vga() { return vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480}; }
+
+// A 30 x 40 cm sheet at 1.5 cm spacing hanging below (0, -0.2, 1.2) in the optical frame (y down),
+// bent about the vertical axis (a cylinder of radius 0.4 m, bulging towards the camera), plus
+// `perturb` times a smooth deformation that grows with the distance from the top.
+Sheet makeSheet(double perturb) {
+  Sheet s;
+  const int nx = 21, ny = 27;
+  const double d = 0.015;
+  s.x.resize(3 * nx * ny);
+  for (int j = 0; j < ny; ++j)
+    for (int i = 0; i < nx; ++i) {
+      const double u = (i - (nx - 1) / 2.0) * d, v = j * d;  // across, down
+      const double a = u / 0.4;
+      Vec3 p(0.4 * std::sin(a), -0.2 + v, 1.2 - 0.4 * (std::cos(a) - 1.0) * -1.0);
+      const double t = v / ((ny - 1) * d);
+      p += perturb * Vec3(0.012 * t * t, 0.0, 0.035 * t * t * (1.0 + 0.5 * u / 0.15));
+      s.x.segment<3>(3 * (j * nx + i)) = p;
+    }
+  for (int j = 0; j + 1 < ny; ++j)
+    for (int i = 0; i + 1 < nx; ++i) {
+      const Index a = j * nx + i, b = a + 1, c = a + nx, e = c + 1;
+      s.triangles.push_back({a, b, e});
+      s.triangles.push_back({a, e, c});
+    }
+  s.top = (nx - 1) / 2;
+  return s;
+}
+
+vision::ShadedImage measure(const Sheet& s) {
+  vision::ShadedRenderOptions ro;
+  ro.intrinsics = vga();
+  ro.noise_sigma = 0;
+  return vision::renderShaded(s.x, s.triangles, ro);
+}
+
+double meanError(const VecX& a, const VecX& b) {
+  double sum = 0;
+  for (Eigen::Index i = 0; i < a.size() / 3; ++i) sum += (a.segment<3>(3 * i) - b.segment<3>(3 * i)).norm();
+  return sum / static_cast<double>(a.size() / 3);
+}
+
+}  // namespace
+
+TEST(ShapeFitting, TheTrueShapeStaysPut) {
+  const Sheet truth = makeSheet(0.0);
+  const vision::ShadedImage m = measure(truth);
+  ShapeFitReport rep;
+  const VecX f = fitShapeToDepth(truth.x, truth.triangles, truth.top, m.depth, m.mask, vga(), {}, &rep);
+  EXPECT_TRUE(rep.applied) << rep.note;
+  EXPECT_GT(rep.depth_correspondences, 200);
+  EXPECT_LT(rep.max_displacement_m, 0.004);
+  EXPECT_LT(meanError(f, truth.x), 0.001);
+}
+
+TEST(ShapeFitting, ADeformedShapeMovesTowardsTheMeasuredSurface) {
+  const Sheet truth = makeSheet(0.0), guess = makeSheet(1.0);
+  const vision::ShadedImage m = measure(truth);
+  ShapeFitReport rep;
+  const VecX f = fitShapeToDepth(guess.x, guess.triangles, guess.top, m.depth, m.mask, vga(), {}, &rep);
+  ASSERT_TRUE(rep.applied) << rep.note;
+  const double before = meanError(guess.x, truth.x), after = meanError(f, truth.x);
+  std::printf("mean vertex error %.1f mm -> %.1f mm; depth residual %.1f -> %.1f mm, %d iterations\n", 1e3 * before,
+              1e3 * after, 1e3 * rep.mean_depth_residual_before_m, 1e3 * rep.mean_depth_residual_after_m, rep.iterations);
+  EXPECT_GT(before, 0.01);
+  EXPECT_LT(after, 0.5 * before);
+  EXPECT_LT(rep.mean_depth_residual_after_m, rep.mean_depth_residual_before_m);
+  // The held vertex does not move.
+  EXPECT_LT((f.segment<3>(3 * guess.top) - guess.x.segment<3>(3 * guess.top)).norm(), 1e-6);
+}
+
+TEST(ShapeFitting, WithoutDepthTheShapeIsReturnedUnchanged) {
+  const Sheet truth = makeSheet(0.0), guess = makeSheet(1.0);
+  vision::ShadedImage m = measure(truth);
+  m.depth.setTo(std::numeric_limits<float>::quiet_NaN());
+  ShapeFitReport rep;
+  const VecX f = fitShapeToDepth(guess.x, guess.triangles, guess.top, m.depth, m.mask, vga(), {}, &rep);
+  EXPECT_FALSE(rep.applied);
+  EXPECT_FALSE(rep.note.empty());
+  EXPECT_EQ((f - guess.x).norm(), 0.0);
+  cv::Mat empty_mask = cv::Mat::zeros(m.mask.size(), CV_8UC1);
+  const VecX g = fitShapeToDepth(guess.x, guess.triangles, guess.top, measure(truth).depth, empty_mask, vga(), {}, &rep);
+  EXPECT_FALSE(rep.applied);
+  EXPECT_EQ((g - guess.x).norm(), 0.0);
+}
+
+TEST(ShapeFitting, BadInputIsRejected) {
+  const Sheet s = makeSheet(0.0);
+  const vision::ShadedImage m = measure(s);
+  EXPECT_THROW(fitShapeToDepth(VecX(s.x.head(s.x.size() - 1)), s.triangles, s.top, m.depth, m.mask, vga()),
+               std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.x.size(), m.depth, m.mask, vga()), std::invalid_argument);
+  std::vector<vision::Triangle> bad = s.triangles;
+  bad.push_back({0, 1, static_cast<Index>(s.x.size())});
+  EXPECT_THROW(fitShapeToDepth(s.x, bad, s.top, m.depth, m.mask, vga()), std::invalid_argument);
+  cv::Mat depth16;
+  m.depth.convertTo(depth16, CV_16UC1);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, depth16, m.mask, vga()), std::invalid_argument);
+  cv::Mat small(10, 10, CV_32FC1, cv::Scalar(1.0));
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, small, m.mask, vga()), std::invalid_argument);
+  ShapeFitOptions o;
+  o.iterations = 0;
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), std::invalid_argument);
+}
