@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # The main job: installs dependencies, builds, and runs the cell demo end to end:
 #  1. creates the default drape database on first run (embedded SQLite at out/demo/drapes.sqlite: the
-#     thesis's 64x46 cm cotton towel, 36 hold points in one quadrant at d = 2 cm, 36 views each; the
-#     rest are mirrored), with a progress bar — an interrupted build resumes on the next run;
+#     thesis's 64x46 cm cotton towel, 36 hold points in one quadrant at d = 2/3 cm, 36 views each; the
+#     rest are mirrored), with a progress bar (about 2-4 minutes on 2 cores) — an interrupted build
+#     resumes on the next run;
 #  2. replays the bundled bag (test/data/towel_replay_a.bag: the towel hanging from a gripper in front
-#     of the cell camera, simulated independently at d = 1.5 cm) with simulated time;
+#     of the cell camera, simulated independently at d = 0.5 cm and held at a point that is not a
+#     database hold point) with simulated time;
 #  3. prints the recognised textile, hold point and grasp poses.
 # Usage: bash scripts/demo.sh [BAG]
 set -euo pipefail
@@ -18,8 +20,9 @@ BIN="$REPO/.build/ws/devel/lib/textile_handling"
 # shellcheck disable=SC1091
 source "$REPO/.build/ws/devel/setup.bash"
 echo "[demo] database $DB"
-# Builds what is missing (nothing when complete): the thesis's 6x6 quadrant grid of hold points.
-"$BIN/drape_db" build --db "$DB" --textile towel --grid 6x6 --spacing 0.02 --threads 2
+# Builds what is missing (nothing when complete): the thesis's 6x6 quadrant grid of hold points, at the
+# resolution the recognizer needs for grasp frames within a few cm (docs/recognition.md).
+OMP_WAIT_POLICY=passive "$BIN/drape_db" build --db "$DB" --textile towel --grid 6x6 --spacing 0.006666666666666667 --cg-tolerance 0.03 --cg-warm-start --threads 2
 "$BIN/drape_db" list --db "$DB"
 echo "[demo] replaying $BAG"
 set +e

@@ -93,6 +93,11 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
       static_cast<int>(finiteParam(pnh, "segmentation/min_area_px", o.segmentation.min_area_px, 1.0));
   o.geometry.max_elevation_deg = finiteParam(pnh, "max_elevation_deg", o.geometry.max_elevation_deg, 0.0);
   pnh.param("refine", o.refinement.enabled, o.refinement.enabled);
+  o.max_shift_x_m = finiteParam(pnh, "max_shift_x_m", o.max_shift_x_m, 0.0);
+  o.max_shift_y_m = finiteParam(pnh, "max_shift_y_m", o.max_shift_y_m, 0.0);
+  pnh.param("shape_fit/enabled", o.shape_fit.enabled, o.shape_fit.enabled);
+  o.shape_fit.edge_weight = finiteParam(pnh, "shape_fit/edge_weight", o.shape_fit.edge_weight, 1e-6);
+  pnh.param("shape_fit/iterations", o.shape_fit.iterations, o.shape_fit.iterations);
   pnh.param("fusion_views", fusion_views_, fusion_views_);
   if (fusion_views_ < 1) throw std::runtime_error("parameter ~fusion_views must be >= 1");
   fusion_window_s_ = finiteParam(pnh, "fusion_window_s", fusion_window_s_, 0.0);

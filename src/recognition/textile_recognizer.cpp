@@ -81,6 +81,8 @@ void RecognizerOptions::validate() const {
   if (!(r.depth_yaw_range_deg >= 0 && r.depth_yaw_range_deg <= 180) || !(r.depth_yaw_step_deg > 0 && r.depth_yaw_step_deg <= 30))
     bad("refinement.depth_yaw_range_deg must be in [0, 180] and depth_yaw_step_deg in (0, 30]");
   if (r.depth_min_pixels < 1) bad("refinement.depth_min_pixels must be >= 1");
+  if ((max_shift_x_m >= 0) != (max_shift_y_m >= 0) || !std::isfinite(max_shift_x_m) || !std::isfinite(max_shift_y_m))
+    bad("max_shift_x_m and max_shift_y_m must both be finite and >= 0 (metric ranges), or both < 0 (pixel ranges of match)");
   const ShapeFitOptions& sf = shape_fit;
   if (sf.iterations < 1 || sf.iterations > 100) bad("shape_fit.iterations must be in 1..100");
   if (!(sf.edge_weight > 0) || !std::isfinite(sf.edge_weight)) bad("shape_fit.edge_weight must be finite and > 0");
@@ -509,12 +511,19 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
     const auto& q = canonical(li->index.frame);
     db::DrapeQueryResult r;
     try {
+      // The shift range in metres, converted to this index's canonical pixels (docs/database.md).
+      vision::MatchOptions mo = o.match;
+      if (o.max_shift_x_m >= 0 && o.max_shift_y_m >= 0) {
+        const vision::MatchOptions metric = db::metricShiftOptions(li->index.frame, o.max_shift_x_m, o.max_shift_y_m, mo.top_k);
+        mo.max_dx = metric.max_dx;
+        mo.max_dy = metric.max_dy;
+      }
       if (n == 1) {
-        r = db::queryDrape(li->index, q[0], o.match);
+        r = db::queryDrape(li->index, q[0], mo);
       } else {
         std::vector<vision::FusionImage> f;
         for (std::size_t i = 0; i < n; ++i) f.push_back({q[i], imgs[i].relative_view_deg});
-        r = db::queryDrapeFused(li->index, f, o.match);
+        r = db::queryDrapeFused(li->index, f, mo);
       }
     } catch (const std::invalid_argument& e) {
       fail(RecognitionErrorCode::kNoMatch, std::string("query: ") + e.what());

@@ -53,7 +53,8 @@ const char* kUsage =
     "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
-    "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--allow-no-rest] [--quiet]\n"
+    "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
+    "         [--allow-no-rest] [--quiet]\n"
     "         [--bracket]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
@@ -136,7 +137,7 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--allow-no-rest", "--quiet", "--bracket"});
+               "--cg-tolerance", "--cg-warm-start", "--allow-no-rest", "--quiet", "--bracket"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -204,6 +205,12 @@ int cmdBuild(const Args& a) {
   }
   if (a.has("--dt-max")) c.settings.dt_max = number(a.get("--dt-max"), "--dt-max");
   if (a.has("--tolerance")) c.settings.error_tolerance = number(a.get("--tolerance"), "--tolerance");
+  if (a.has("--cg-tolerance")) {
+    c.settings.solver.relative_tolerance = number(a.get("--cg-tolerance"), "--cg-tolerance");
+    if (!(c.settings.solver.relative_tolerance > 0 && c.settings.solver.relative_tolerance < 1))
+      throw UsageError("--cg-tolerance must be in (0, 1)");
+  }
+  if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
   if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
   if (a.has("--settle-damping")) c.model_options.settle_damping = number(a.get("--settle-damping"), "--settle-damping");
   c.require_rest = !a.has("--allow-no-rest");
@@ -477,7 +484,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   try {
     if (cmd == "build")
-      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket"}));
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));

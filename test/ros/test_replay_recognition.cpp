@@ -103,8 +103,9 @@ TEST(ReplayRecognition, HeldOutSceneGivesTheHoldPointAndGraspFrames) {
   ros::Subscriber sub = nh.subscribe<textile_handling::RecognitionResult>(
       "/textile_recognizer/result", 20, [&](const textile_handling::RecognitionResult::ConstPtr& m) {
         std::lock_guard<std::mutex> l(mu);
-        if (m->success && m->images_fused >= min_images) results.push_back(*m);
-        else {
+        if (m->success && m->images_fused >= min_images) {
+          results.push_back(*m);
+        } else if (!m->success) {
           ++failures;
           ROS_WARN("recognizer: %s", m->message.c_str());
         }

@@ -86,6 +86,11 @@ struct RecognizerOptions {
   bool include_derived = true;
   /// Coarse matcher options; top_k is the number of candidates reported.
   vision::MatchOptions match;
+  /// Coarse shift search range in metres (converted per index frame), used instead of match.max_dx /
+  /// max_dy when both are >= 0. The hold point is located in the image, so silhouettes only need aligning
+  /// by that error: +-3 x +-2 cm (docs/database.md measured it better than the thesis's +-47 x +-8 cm).
+  double max_shift_x_m = 0.03;
+  double max_shift_y_m = 0.02;
   SegmentationOptions segmentation;
   CameraGeometryOptions geometry;
   CanonicalisationOptions canonicalisation;
