@@ -71,7 +71,7 @@ DrapeSceneSpec towelSpec(Real spacing, const std::string& hold) {
   s.model_options.settle_damping = 4.0;
   s.model_options.jacobian = JacobianMode::kDefiniteFix;
   s.choi_ko_options.settle_damping = 4.0;  // same settling for the Choi-Ko rows (a rest-shape comparison)
-  s.settings.max_time = 8.0;
+  s.settings.max_time = 8.0;  // Choi-Ko rows: 30 s (set with the model below; docs/choi_ko.md "Reaching rest")
   s.settings.dt = 1e-3;
   s.settings.dt_max = 0.02;
   s.settings.error_tolerance = 1e-3;
@@ -209,11 +209,13 @@ int main(int argc, char** argv) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
          fastSolver(s);
          s.model = "choi_ko";
+         s.settings.max_time = 30.0;
        }},
       {"choi_ko semi_implicit/fixed 10 ms, no damping", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kFixed, 0.01)(s);
          s.model = "choi_ko";
          s.choi_ko_options.settle_damping = 0;
+         s.settings.max_time = 30.0;
        }},
   };
   // At d = 0.5 cm only the particle model without collision runs (every integrator): the collision
@@ -249,6 +251,8 @@ int main(int argc, char** argv) {
         DrapeSceneSpec ref_spec = towelSpec(d, hold);
         ref_spec.model = key.first;
         ref_spec.self_collision = collide;
+        // The Choi-Ko towel settles slowly (about 20 s simulated at d = 1 cm; docs/choi_ko.md).
+        if (key.first == "choi_ko") ref_spec.settings.max_time = 30.0;
         ref_spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
         ref_spec.settings.policy = StepPolicy::kFixed;
         ref_spec.settings.dt = 1e-3;

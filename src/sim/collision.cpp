@@ -13,6 +13,8 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/SVD>
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -31,6 +33,42 @@ double msSince(Clock::time_point t0) { return std::chrono::duration<double, std:
 inline bool overlapInflated(const geom::Aabb& a, const geom::Aabb& b, Real r) {
   return a.lo.x() - r <= b.hi.x() && b.lo.x() <= a.hi.x() + r && a.lo.y() - r <= b.hi.y() && b.lo.y() <= a.hi.y() + r &&
          a.lo.z() - r <= b.hi.z() && b.lo.z() <= a.hi.z() + r;
+}
+
+// Cheap separating-axis rejections (the axis between the centres): true when the features are
+// farther apart than sqrt(r2). Conservative: the distance is at least the gap of the projections
+// onto any axis. For the crossing tests (exact predicates) a gap of 1 um (far above the rounding
+// of these few products at cloth coordinates, whatever the axis length) is required.
+constexpr Real kApartMargin2 = 1e-12;
+inline bool segmentsApart(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3& q2, Real r2) {
+  const Vec3 w = 0.5 * ((q1 + q2) - (p1 + p2));
+  const Real ww = w.squaredNorm();
+  const Real s = ww - 0.5 * (std::abs((p2 - p1).dot(w)) + std::abs((q2 - q1).dot(w)));
+  return s > 0 && s * s > r2 * ww;
+}
+inline bool trianglesApart(const Vec3& a0, const Vec3& a1, const Vec3& a2, const Vec3& b0, const Vec3& b1,
+                           const Vec3& b2, Real r2) {
+  const Vec3 ga = (a0 + a1 + a2) / 3.0, gb = (b0 + b1 + b2) / 3.0;
+  const Vec3 w = gb - ga;
+  const Real ww = w.squaredNorm();
+  const Real s = ww - std::max({(a0 - ga).dot(w), (a1 - ga).dot(w), (a2 - ga).dot(w)}) -
+                 std::max({(gb - b0).dot(w), (gb - b1).dot(w), (gb - b2).dot(w)});
+  return s > 0 && s * s > r2 * ww;
+}
+inline bool segmentTriangleApart(const Vec3& p1, const Vec3& p2, const Vec3& a, const Vec3& b, const Vec3& c,
+                                 Real r2) {
+  const Vec3 g = (a + b + c) / 3.0;
+  const Vec3 w = g - 0.5 * (p1 + p2);
+  const Real ww = w.squaredNorm();
+  const Real s = ww - 0.5 * std::abs((p2 - p1).dot(w)) - std::max({(g - a).dot(w), (g - b).dot(w), (g - c).dot(w)});
+  return s > 0 && s * s > r2 * ww;
+}
+inline bool pointTriangleApart(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c, Real r2) {
+  const Vec3 g = (a + b + c) / 3.0;
+  const Vec3 w = x - g;
+  const Real ww = w.squaredNorm();
+  const Real s = ww - std::max({(a - g).dot(w), (b - g).dot(w), (c - g).dot(w)});
+  return s > 0 && s * s > r2 * ww;
 }
 
 std::uint64_t edgeKey(Index a, Index b) {
@@ -161,6 +199,7 @@ void SelfCollisionStats::add(const SelfCollisionStats& o) {
   proximity_ms += o.proximity_ms;
   proximity_detect_ms += o.proximity_detect_ms;
   candidate_list_builds += o.candidate_list_builds;
+  proximity_list_builds += o.proximity_list_builds;
 }
 
 // ---- self-collision pass --------------------------------------------------------------------------
@@ -177,6 +216,8 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
       !(options_.proximity_separation >= 0 && options_.proximity_separation <= 1) ||
       !(options_.proximity_friction >= 0 && std::isfinite(options_.proximity_friction)) ||
       !(options_.proximity_search_factor >= 1 && options_.proximity_search_factor <= 3) ||
+      !(options_.proximity_list_margin >= 0 && options_.proximity_list_margin <= 4) ||
+      !(options_.candidate_list_margin >= 0 && options_.candidate_list_margin <= 4) ||
       options_.proximity_iterations < 1)
     throw std::invalid_argument("SelfCollisionPass: invalid options");
   if (!tris_.vertex_mass.empty() && static_cast<Index>(tris_.vertex_mass.size()) != tris_.num_vertices)
@@ -424,7 +465,7 @@ void SelfCollisionPass::detectEdges(Index num_edges_considered, const VecX& x, s
   mergeSorted(local, hits);
 }
 
-void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real inflate) {
+void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real inflate, Real ahead) {
   // Every pair of triangles whose swept boxes are within `inflate` of each other (per axis). The
   // broad phase works on grid cells (the one or two triangles that share a cell diagonal, half as
   // many boxes as triangles): the cell boxes, inflated by `inflate`, go into a hash that is queried
@@ -439,6 +480,7 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
     for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
       b.extend(node3(x_old, c));
       b.extend(node3(x, c));
+      if (ahead > 0) b.extend(Vec3(node3(x, c) + ahead * (node3(x, c) - node3(x_old, c))));
     }
     boxes_[static_cast<size_t>(t)] = b;
   }
@@ -455,7 +497,9 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
     group_boxes_[static_cast<size_t>(g)] = b;
   }
   group_hash_.build(group_boxes_, options_.cell_size_factor * tris_.spacing);
-  std::vector<std::vector<std::pair<Index, Index>>> local(static_cast<size_t>(threadCount()));
+  auto& local = local_pairs_;
+  local.resize(static_cast<size_t>(threadCount()));
+  for (auto& l : local) l.clear();
 #pragma omp parallel if (G >= kParallelMin)
   {
     auto& out = local[static_cast<size_t>(threadId())];
@@ -480,8 +524,11 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
       });
     }
   }
+  size_t total = 0;
+  for (const auto& l : local) total += l.size();
   cand_.clear();
-  for (auto& l : local) cand_.insert(cand_.end(), l.begin(), l.end());
+  cand_.reserve(total);
+  for (const auto& l : local) cand_.insert(cand_.end(), l.begin(), l.end());
 }
 
 void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
@@ -502,17 +549,29 @@ void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const V
       if (tris_.triangleHasVertex(t2, ed[0]) || tris_.triangleHasVertex(t2, ed[1])) return;
       if (edgeCrosses(e, t2, x)) out.push_back(Hit{e, t2});
     };
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 1024)  // candidate pairs cost more than the listed ones
     for (Index k = 0; k < m; ++k) {
       if (k >= nc && k < nc + na) {  // triangles sharing a vertex: the listed edge-triangle pairs
         const auto& c = adj_cross_[static_cast<size_t>(k - nc)];
         if (c.first < num_edges_considered &&
-            edge_boxes_[static_cast<size_t>(c.first)].overlaps(boxes_[static_cast<size_t>(c.second)]) &&
-            edgeCrosses(c.first, c.second, x))
-          out.push_back(Hit{c.first, c.second});
+            edge_boxes_[static_cast<size_t>(c.first)].overlaps(boxes_[static_cast<size_t>(c.second)])) {
+          const auto& ed = tris_.edges[static_cast<size_t>(c.first)];
+          const auto& ct = tris_.triangles[static_cast<size_t>(c.second)];
+          if (!segmentTriangleApart(node3(x, ed[0]), node3(x, ed[1]), node3(x, ct[0]), node3(x, ct[1]), node3(x, ct[2]),
+                                    kApartMargin2) &&
+              edgeCrosses(c.first, c.second, x))
+            out.push_back(Hit{c.first, c.second});
+        }
       } else if (k < nc) {
         const Index a = cand_[static_cast<size_t>(k)].first, b = cand_[static_cast<size_t>(k)].second;
         if (!boxes_[static_cast<size_t>(a)].overlaps(boxes_[static_cast<size_t>(b)])) continue;
+        {  // triangles clearly apart at x cannot cross (the margin covers rounding)
+          const auto& ca = tris_.triangles[static_cast<size_t>(a)];
+          const auto& cb = tris_.triangles[static_cast<size_t>(b)];
+          if (trianglesApart(node3(x, ca[0]), node3(x, ca[1]), node3(x, ca[2]), node3(x, cb[0]), node3(x, cb[1]),
+                             node3(x, cb[2]), kApartMargin2))
+            continue;
+        }
         for (int j = 0; j < numOwnedEdges(a); ++j) test(ownedEdges(a)[j], b);
         for (int j = 0; j < numOwnedEdges(b); ++j) test(ownedEdges(b)[j], a);
       } else {
@@ -785,11 +844,14 @@ Real segmentDistance2(const Vec3& p1, const Vec3& p2, const Vec3& q1, const Vec3
 
 void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   // Candidate pairs within `radius` at x_old (a Verlet list, as in molecular dynamics): they are
-  // re-evaluated every step until some particle has moved by more than a quarter of the list's
-  // margin. Source: the candidate triangle pairs of this step (boxes inflated by radius / 2 each).
+  // re-evaluated every step until the particles have moved relative to each other by more than the
+  // list's margin (applyV3). Source: the candidate triangle pairs, which cover `radius` at x_old.
   const Index T = tris_.numTriangles();
   const Index E = tris_.numEdges();
-  std::vector<geom::Aabb> tbox(static_cast<size_t>(T)), ebox(static_cast<size_t>(E));
+  std::vector<geom::Aabb>& tbox = prox_tbox_;
+  std::vector<geom::Aabb>& ebox = prox_ebox_;
+  tbox.resize(static_cast<size_t>(T));
+  ebox.resize(static_cast<size_t>(E));
 #pragma omp parallel for if (T >= kParallelMin) schedule(static)
   for (Index t = 0; t < T; ++t) {
     geom::Aabb b;
@@ -810,8 +872,12 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   const Index nc = static_cast<Index>(cand_.size()), nav = static_cast<Index>(adj_vt_.size());
   const Index nae = with_edges ? static_cast<Index>(adj_ee_.size()) : 0;
   const Index m = nc + nav + nae;
-  std::vector<std::vector<std::pair<Index, Index>>> lvt(static_cast<size_t>(threadCount())),
-      lee(static_cast<size_t>(threadCount()));
+  auto& lvt = local_vt_;
+  auto& lee = local_ee_;
+  lvt.resize(static_cast<size_t>(threadCount()));
+  lee.resize(static_cast<size_t>(threadCount()));
+  for (auto& l : lvt) l.clear();
+  for (auto& l : lee) l.clear();
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
     auto& ovt = lvt[static_cast<size_t>(threadId())];
@@ -825,11 +891,12 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
         if (c[0] == p || c[1] == p || c[2] == p) continue;
         const Vec3 xp = node3(x_old, p);
         if ((xp.array() < b2.lo.array() - radius).any() || (xp.array() > b2.hi.array() + radius).any()) continue;
-        if (pointTriangleDistance2(xp, node3(x_old, c[0]), node3(x_old, c[1]), node3(x_old, c[2])) <= r2)
-          ovt.emplace_back(p, t2);
+        const Vec3 a0 = node3(x_old, c[0]), a1 = node3(x_old, c[1]), a2 = node3(x_old, c[2]);
+        if (pointTriangleApart(xp, a0, a1, a2, r2)) continue;
+        if (pointTriangleDistance2(xp, a0, a1, a2) <= r2) ovt.emplace_back(p, t2);
       }
     };
-#pragma omp for schedule(static)
+#pragma omp for schedule(dynamic, 512)  // candidate pairs cost more than the listed ones
     for (Index q = 0; q < m; ++q) {
       if (q >= nc) {  // triangles sharing a vertex: the listed feature pairs
         if (q < nc + nav) {
@@ -838,20 +905,29 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
           const Vec3 xp = node3(x_old, c.first);
           const geom::Aabb& b2 = tbox[static_cast<size_t>(c.second)];
           if ((xp.array() < b2.lo.array() - radius).any() || (xp.array() > b2.hi.array() + radius).any()) continue;
-          if (pointTriangleDistance2(xp, node3(x_old, tc[0]), node3(x_old, tc[1]), node3(x_old, tc[2])) <= r2)
-            ovt.push_back(c);
+          const Vec3 a0 = node3(x_old, tc[0]), a1 = node3(x_old, tc[1]), a2 = node3(x_old, tc[2]);
+          if (pointTriangleApart(xp, a0, a1, a2, r2)) continue;
+          if (pointTriangleDistance2(xp, a0, a1, a2) <= r2) ovt.push_back(c);
         } else {
           const auto& c = adj_ee_[static_cast<size_t>(q - nc - nav)];
           if (!overlapInflated(ebox[static_cast<size_t>(c.first)], ebox[static_cast<size_t>(c.second)], radius)) continue;
           const auto& pe = tris_.edges[static_cast<size_t>(c.first)];
           const auto& qe = tris_.edges[static_cast<size_t>(c.second)];
-          if (segmentDistance2(node3(x_old, pe[0]), node3(x_old, pe[1]), node3(x_old, qe[0]), node3(x_old, qe[1])) <= r2)
-            oee.push_back(c);
+          const Vec3 p1 = node3(x_old, pe[0]), p2 = node3(x_old, pe[1]), q1 = node3(x_old, qe[0]), q2 = node3(x_old, qe[1]);
+          if (segmentsApart(p1, p2, q1, q2, r2)) continue;
+          if (segmentDistance2(p1, p2, q1, q2) <= r2) oee.push_back(c);
         }
         continue;
       }
       const Index k = cand_[static_cast<size_t>(q)].first, t2 = cand_[static_cast<size_t>(q)].second;
       if (!overlapInflated(tbox[static_cast<size_t>(k)], tbox[static_cast<size_t>(t2)], radius)) continue;
+      {
+        const auto& ck = tris_.triangles[static_cast<size_t>(k)];
+        const auto& c2 = tris_.triangles[static_cast<size_t>(t2)];
+        if (trianglesApart(node3(x_old, ck[0]), node3(x_old, ck[1]), node3(x_old, ck[2]), node3(x_old, c2[0]),
+                           node3(x_old, c2[1]), node3(x_old, c2[2]), r2))
+          continue;
+      }
       vt(k, t2);
       vt(t2, k);
       if (!with_edges) continue;
@@ -866,8 +942,9 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
           const auto& qe = tris_.edges[static_cast<size_t>(e2)];
           if (pe[0] == qe[0] || pe[0] == qe[1] || pe[1] == qe[0] || pe[1] == qe[1]) continue;
           if (!overlapInflated(ebox[static_cast<size_t>(e1)], ebox[static_cast<size_t>(e2)], radius)) continue;
-          if (segmentDistance2(node3(x_old, pe[0]), node3(x_old, pe[1]), node3(x_old, qe[0]), node3(x_old, qe[1])) <= r2)
-            oee.emplace_back(std::min(e1, e2), std::max(e1, e2));
+          const Vec3 p1 = node3(x_old, pe[0]), p2 = node3(x_old, pe[1]), q1 = node3(x_old, qe[0]), q2 = node3(x_old, qe[1]);
+          if (segmentsApart(p1, p2, q1, q2, r2)) continue;
+          if (segmentDistance2(p1, p2, q1, q2) <= r2) oee.emplace_back(std::min(e1, e2), std::max(e1, e2));
         }
       }
     }
@@ -1181,56 +1258,135 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
   return contacts;
 }
 
+void SelfCollisionPass::setReference(MotionReference& ref, const VecX& y) const {
+  ref.x = y;
+  ref.valid = y.allFinite();
+}
+
+bool SelfCollisionPass::movedLessThan(const MotionReference& ref, const VecX& y, Real budget) const {
+  // Any orthogonal map Q and translation c keep all distances: with z_i = Q p_i + c (p: the
+  // reference) and u_i = y_i - z_i, a pair of features of y is closer than at the build by at most
+  // max |u_i - u_j| over their particles i, j (the features' points are convex combinations of
+  // their particles), which is at most the diameter of the box of all u. Q, c: the identity when
+  // every particle moved less than budget / 2, else the least-squares rigid fit (Kabsch 1976) of
+  // a subsample. Sequential: the same decisions for every thread count (they never change a
+  // result anyway, only the cost).
+  const Index n = y.size() / 3;
+  if (!ref.valid || ref.x.size() != y.size() || !(budget >= 0)) return false;
+  if (n == 0) return true;
+  const Real* p = ref.x.data();
+  const Real* q = y.data();
+  {
+    const Real lim2 = 0.25 * budget * budget;
+    bool ok = true;
+    for (Index k = 0; k < n && ok; ++k) {
+      const Real dx = q[3 * k] - p[3 * k], dy = q[3 * k + 1] - p[3 * k + 1], dz = q[3 * k + 2] - p[3 * k + 2];
+      ok = dx * dx + dy * dy + dz * dz <= lim2;
+    }
+    if (ok) return true;
+  }
+  // Fit on about 512 particles, relative to particle 0 (small numbers, little cancellation).
+  const Index stride = std::max<Index>(1, n / 512);
+  const Vec3 p0(p[0], p[1], p[2]), q0(q[0], q[1], q[2]);
+  Vec3 sp = Vec3::Zero(), sq = Vec3::Zero();
+  Mat3 spq = Mat3::Zero();
+  Index m = 0;
+  for (Index k = 0; k < n; k += stride, ++m) {
+    const Vec3 pk = Vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]) - p0;
+    const Vec3 qk = Vec3(q[3 * k], q[3 * k + 1], q[3 * k + 2]) - q0;
+    sp += pk;
+    sq += qk;
+    spq.noalias() += pk * qk.transpose();
+  }
+  const Vec3 cp = sp / static_cast<Real>(m), cq = sq / static_cast<Real>(m);
+  const Mat3 H = spq - static_cast<Real>(m) * cp * cq.transpose();  // sum of (p - cp)(q - cq)^T
+  if (!H.allFinite()) return false;
+  const Eigen::JacobiSVD<Mat3> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Mat3 Q = svd.matrixV() * svd.matrixU().transpose();
+  if (!Q.allFinite()) return false;
+  // z_k = Q (p_k - p0 - cp) + q0 + cq. Q is orthogonal to rounding (relative 1e-15), which changes
+  // distances of up to a few metres by far less than the allowance taken off the budget.
+  const Vec3 c = q0 + cq - Q * (p0 + cp);
+  const Real lim = budget - 1e-12 * (1 + p0.norm() + q0.norm());
+  if (!(lim >= 0)) return false;
+  Vec3 lo = Vec3::Constant(std::numeric_limits<Real>::infinity()), hi = -lo;
+  for (Index k = 0; k < n; ++k) {
+    const Vec3 u = Vec3(q[3 * k], q[3 * k + 1], q[3 * k + 2]) - Q * Vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]) - c;
+    lo = lo.cwiseMin(u);
+    hi = hi.cwiseMax(u);
+  }
+  const Real D = (hi - lo).norm();
+  return D <= lim;
+}
+
 long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisionStats& st) {
   const Index E = options_.include_diagonals ? tris_.numEdges() : tris_.num_grid_edges;
   const Index nv = tris_.num_vertices;
   auto t0 = Clock::now();
-  // Broad phase: the candidate triangle pairs (stored swept boxes inflated by the list radius Rv
-  // overlapping a swept box) and, with the proximity stage, the vertex-triangle and edge-edge
-  // pairs within Rv at x_old. Both lists are kept (Verlet lists) while every particle stays within
-  // Rv / 2 of its swept box at the build (crossings: two triangles that touch now were within Rv
-  // then) and within (Rv - R) / 2 of its position x_old at the build (proximity: a pair within the
-  // search radius R now was within Rv then). Without the proximity stage (Rv = 0) the list is built
-  // every step. Rollbacks only ever put particles back to x_old, which stays inside the boxes.
+  // Broad phase (docs/collision.md, "Broad phase and cost"): two Verlet lists, kept from step to
+  // step while they provably contain everything needed.
+  //  * cand_: the triangle pairs whose swept boxes at the build (x_old, x and the step continued
+  //    by kCandidateLookahead steps) were within Rc of each other (plus the topological
+  //    neighbours, listed once). Two triangles that touch now were within Rc at the build as long
+  //    as every particle stayed within Rc / 2 of its box then, or no two particles moved apart by
+  //    more than Rc since, less a rigid motion (cand_ref_): rigid motions keep all distances.
+  //  * prox_cache_*: the vertex-triangle and edge-edge pairs within Rp at the x_old of their build
+  //    (prox_ref_), taken from cand_: a pair within the search radius R now was within Rp then
+  //    while no two particles of x_old moved apart by more than Rp - R, less a rigid motion. The
+  //    list is rebuilt from cand_ when cand_ still covers Rp at x_old (budget Rc - Rp), else cand_
+  //    is rebuilt first.
+  // Without the proximity stage (Rc = 0) cand_ is built every step. Which lists are reused never
+  // changes a result: what is kept is always a superset of what is tested, and everything found
+  // is sorted. Rollbacks only put particles back to x_old, which the list covers.
   const Real thickness = options_.thickness_factor * tris_.spacing;
   const bool prox = options_.proximity && thickness > 0;
   const Real R = proximitySearchRadius(thickness);
-  const Real Rv = prox ? proximityListRadius(thickness) : 0.0;
+  const Real Rp = prox ? proximityListRadius(thickness) : 0.0;
+  const Real Rc = prox ? candidateListRadius(thickness) : 0.0;
   auto outside = [&](const VecX& y) {  // largest distance of a particle outside its reference box
     Real d = 0;
-    for (Index p = 0; p < nv; ++p)
-      for (int k = 0; k < 3; ++k) {
-        const Real c = y[3 * p + k];
-        d = std::max({d, list_lo_[static_cast<size_t>(3 * p + k)] - c, c - list_hi_[static_cast<size_t>(3 * p + k)]});
-      }
+    const Real* lo = list_lo_.data();
+    const Real* hi = list_hi_.data();
+    const Real* py = y.data();
+    for (Index k = 0; k < 3 * nv; ++k) d = std::max({d, lo[k] - py[k], py[k] - hi[k]});
     return d;
   };
   auto buildCandidates = [&](const VecX& xn) {
-    collectCandidates(x_old, xn, Rv);
+    const Real ahead = prox ? kCandidateLookahead : 0.0;
+    collectCandidates(x_old, xn, Rc, ahead);
     list_lo_.resize(static_cast<size_t>(3 * nv));
     list_hi_.resize(static_cast<size_t>(3 * nv));
     for (Index k = 0; k < 3 * nv; ++k) {
-      list_lo_[static_cast<size_t>(k)] = std::min(x_old[k], xn[k]);
-      list_hi_[static_cast<size_t>(k)] = std::max(x_old[k], xn[k]);
+      const Real ext = xn[k] + ahead * (xn[k] - x_old[k]);
+      list_lo_[static_cast<size_t>(k)] = std::min({x_old[k], xn[k], ext});
+      list_hi_[static_cast<size_t>(k)] = std::max({x_old[k], xn[k], ext});
     }
+    setReference(cand_ref_, xn);
+    cand_valid_ = prox;
+    cand_radius_ = Rc;
     ++st.candidate_list_builds;
   };
+  // cand_ contains every triangle pair within `reach` of each other at y.
+  auto candidatesCover = [&](const VecX& y, Real reach) {
+    if (!prox || !cand_valid_ || cand_radius_ != Rc || list_lo_.size() != static_cast<size_t>(y.size())) return false;
+    const Real budget = Rc - reach;
+    if (!(budget >= 0)) return false;
+    if (2 * outside(y) <= budget) return true;
+    return movedLessThan(cand_ref_, y, budget);
+  };
   hash_current_ = false;
-  bool rebuild = !prox || !list_valid_ || list_radius_ != Rv || list_edges_ != options_.proximity_edges ||
-                 list_old_.size() != x_old.size();
-  if (!rebuild) {
-    Real dold = 0;
-    for (Index p = 0; p < nv; ++p) dold = std::max(dold, (node3(x_old, p) - node3(list_old_, p)).norm());
-    rebuild = 2 * dold > Rv - R || 2 * outside(x) > Rv;
-  }
-  if (rebuild) {
-    buildCandidates(x);
-    if (prox) {
-      buildProximityCache(x_old, Rv);
-      list_old_ = x_old;
+  if (prox) {
+    bool rebuild = !list_valid_ || list_radius_ != Rp || list_edges_ != options_.proximity_edges ||
+                   prox_ref_.x.size() != x_old.size();
+    if (!rebuild) rebuild = !movedLessThan(prox_ref_, x_old, Rp - R);
+    if (rebuild) {
+      if (!candidatesCover(x_old, Rp)) buildCandidates(x);
+      buildProximityCache(x_old, Rp);
+      setReference(prox_ref_, x_old);
       list_valid_ = true;
-      list_radius_ = Rv;
+      list_radius_ = Rp;
       list_edges_ = options_.proximity_edges;
+      ++st.proximity_list_builds;
     }
   }
   st.broad_ms += msSince(t0);
@@ -1247,11 +1403,11 @@ long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
       st.proximity_contacts = resolveProximity(pairs, thickness, x_old, x_pred, x, v, st);
     }
     st.proximity_ms += msSince(t0);
-    t0 = Clock::now();
-    // The corrections may have moved particles out of what the candidate list covers.
-    if (2 * outside(x) > Rv) buildCandidates(x);
-    st.broad_ms += msSince(t0);
   }
+  t0 = Clock::now();
+  // The triangle pairs that can touch at x (after the proximity stage's corrections).
+  if (!candidatesCover(x, 0.0)) buildCandidates(x);
+  st.broad_ms += msSince(t0);
   t0 = Clock::now();
   computeEdgeBoxes(x_old, x);
   refreshBoxes(x_old, x, 0.0);  // the current swept boxes (the list's boxes contain them)

@@ -354,8 +354,12 @@ void SpatialHash::build(const std::vector<Aabb>& boxes, Real cell) {
   boxes_ = &boxes;
   const size_t n = boxes.size();
   oversized_.clear();
-  std::vector<Cell> lo(n), hi(n);
-  std::vector<char> in_table(n, 0);
+  std::vector<Cell>& lo = lo_;
+  std::vector<Cell>& hi = hi_;
+  std::vector<char>& in_table = in_table_;
+  lo.resize(n);
+  hi.resize(n);
+  in_table.assign(n, 0);
   size_t count = 0;
   for (size_t i = 0; i < n; ++i) {
     const Aabb& b = boxes[i];
@@ -375,7 +379,8 @@ void SpatialHash::build(const std::vector<Aabb>& boxes, Real cell) {
   while (table < 2 * count) table <<= 1;
   mask_ = table - 1;
   start_.assign(table + 1, 0);
-  std::vector<std::uint32_t> bucket(count);
+  std::vector<std::uint32_t>& bucket = bucket_;
+  bucket.resize(count);
   size_t k = 0;
   for (size_t i = 0; i < n; ++i) {
     if (!in_table[i]) continue;
@@ -389,7 +394,8 @@ void SpatialHash::build(const std::vector<Aabb>& boxes, Real cell) {
   }
   for (size_t b = 0; b < table; ++b) start_[b + 1] += start_[b];
   entries_.resize(count);
-  std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+  std::vector<std::uint32_t>& fill = fill_;
+  fill.assign(start_.begin(), start_.end() - 1);
   k = 0;
   for (size_t i = 0; i < n; ++i) {
     if (!in_table[i]) continue;

@@ -13,6 +13,8 @@
 //    compressed configurations, the assembled default Jacobian symmetric negative semi-definite,
 //    thread-count independence, masses, the KES mapping, the bend sign, internalState round trips;
 //  * stability: Choi–Ko without damping at 10 and 20 ms in both compression scenes.
+//  * rest: the bench's towel (d = 2 cm, corner) settles to a true equilibrium (residual force check);
+//    the 8 s-cap target is a disabled test (docs/choi_ko.md, "Reaching rest").
 //
 // Finite differences are central with h = 1e-7 m (d = 1 cm). Tolerances: forces within 1e-6 of the
 // largest force (+1e-12 N); Jacobian blocks within 1e-5 of their norm plus 1e-7 of the largest block
@@ -39,6 +41,7 @@
 #include <string>
 #include <vector>
 
+#include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/stability_scenes.h"
 #include "textile_handling/sim/textile_geometry.h"
 
@@ -1103,6 +1106,71 @@ TEST(ChoiKoStability, StableAtTenMillisecondsAtOneCentimetreResolution) {
     const StabilityResult r = runCompressionScene(scene, run);
     EXPECT_TRUE(r.stable) << toString(s) << ": " << r.reason;
   }
+}
+
+// ---- reaching rest (docs/choi_ko.md, "Reaching rest") -------------------------------------------------
+
+// The benchmark's towel scene (bench/drape_bench.cpp: towelSpec + fastSolver) with the Choi-Ko model's
+// default options: 64 x 46 cm cotton held at `hold`, settle damping 4/s, semi-implicit Euler with the
+// error-controlled step (dt_max 12.5 ms, CG tolerance 0.03, warm start), default rest thresholds.
+DrapeSceneSpec benchTowel(Real spacing, const std::string& hold, Real max_time) {
+  DrapeSceneSpec s;
+  s.textile = presetTextile("towel");
+  s.material = Material::cotton();
+  s.spacing = spacing;
+  s.hold = {HoldPoint{hold, Vec2::Zero()}};
+  s.hold_position = Vec3(0, 0, 1.0);
+  s.model = "choi_ko";
+  s.choi_ko_options.settle_damping = 4.0;
+  s.settings.integrator = IntegratorType::kSemiImplicitEuler;
+  s.settings.policy = StepPolicy::kErrorControlled;
+  s.settings.max_time = max_time;
+  s.settings.dt = 1e-3;
+  s.settings.dt_max = 0.0125;
+  s.settings.error_tolerance = 1e-3;
+  s.settings.solver.relative_tolerance = 0.03;
+  s.settings.solver.warm_start = true;
+  return s;
+}
+
+struct TowelRun {
+  RunResult result;
+  Real depth = 0;
+  Real worst_residual = 0;  ///< max over free particles of |f_i| / (m_i g) at the end, v = 0
+};
+
+TowelRun runBenchTowel(const DrapeSceneSpec& spec) {
+  DrapeScene scene = buildDrapeScene(spec);
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  TowelRun run;
+  run.result = sim.run();
+  run.depth = hangingDepth(scene, sim.positions());
+  VecX f;
+  scene.model->computeForces(sim.positions(), VecX::Zero(sim.positions().size()), f, nullptr);
+  const VecX& m = scene.model->massPerDof();
+  for (Index i = 0; i < scene.model->numNodes(); ++i) {
+    if (std::count(scene.pins.nodes.begin(), scene.pins.nodes.end(), i)) continue;
+    run.worst_residual = std::max(run.worst_residual, node3(f, i).norm() / (m[3 * i] * kGravity));
+  }
+  return run;
+}
+
+TEST(ChoiKoRest, TowelHeldAtACornerSettlesToATrueEquilibrium) {
+  ThreadScope threads(1);  // results do not depend on it
+  // Characterisation of the slow settling (docs/choi_ko.md, "Reaching rest"): at d = 2 cm the towel
+  // held at a corner comes to rest only after about 22 s of simulated time (measured), far beyond the
+  // bench's 8 s cap, and the rest it reaches is a real equilibrium (the largest residual force is about
+  // 1 % of a particle's weight), not a crawl held up by the linearised step. Default rest thresholds.
+  const DrapeSceneSpec spec = benchTowel(0.02, "corner_ul", 30.0);
+  const SimulationSettings defaults;
+  ASSERT_EQ(spec.settings.rest_speed, defaults.rest_speed);
+  ASSERT_EQ(spec.settings.rest_mean_speed, defaults.rest_mean_speed);
+  ASSERT_EQ(spec.settings.rest_duration, defaults.rest_duration);
+  const TowelRun run = runBenchTowel(spec);
+  EXPECT_FALSE(run.result.diverged) << run.result.divergence_reason;
+  EXPECT_TRUE(run.result.rest_reached) << "t = " << run.result.sim_time << " s";
+  EXPECT_LT(run.worst_residual, 0.05);
+  EXPECT_GT(run.depth, 0.5);
 }
 
 TEST(ChoiKoStability, ParticleModelWithExactJacobianFailsAtTenMilliseconds) {

@@ -166,6 +166,16 @@ struct SelfCollisionOptions {
   /// approach of up to (factor - 1) T per step is stopped at the thickness (faster ones are left to
   /// the rollback). In [1, 3]; larger finds more contacts early at a higher cost (docs).
   Real proximity_search_factor = 1.5;
+  /// Margin of the proximity candidate list (Verlet list) in thicknesses: the list holds the pairs
+  /// within Rp = (proximity_search_factor + proximity_list_margin) T at its build and stays valid
+  /// while the particles' motion since then, less the best-fitting rigid motion, moved no two of
+  /// them apart by more than the margin (docs/collision.md, "Broad phase and cost"). In [0, 4];
+  /// only the cost depends on it (0.75 was slower than 0.5 on the 1 cm towel).
+  Real proximity_list_margin = 0.5;
+  /// Extra inflation Rc - Rp of the candidate triangle-pair list, in thicknesses (in [0, 4]): with
+  /// it the pair list outlives proximity lists, which are then rebuilt from it without the hash.
+  /// Only the cost depends on it (0.5 was cheaper than 0 and 1 on the 1 cm towel).
+  Real candidate_list_margin = 0.5;
   /// Gauss-Seidel sweeps over the contacts (and the grid edges around them) per step.
   int proximity_iterations = 8;
   /// After each sweep over the contacts, restore the grid edges around the moved particles to their
@@ -209,6 +219,7 @@ struct SelfCollisionStats {
   double proximity_ms = 0;         ///< proximity stage in all (detection, resolution, box refresh)
   double proximity_detect_ms = 0;  ///< of which the detection of close pairs
   long candidate_list_builds = 0;  ///< broad-phase candidate lists built (v3: reused while valid)
+  long proximity_list_builds = 0;  ///< proximity candidate lists built (v3: reused while valid)
   double broad_ms = 0;        ///< building boxes and the hash
   double detect_ms = 0;       ///< candidate detection (parallel)
   double resolve_ms = 0;      ///< resolution (sequential, fixed order)
@@ -229,6 +240,7 @@ class SelfCollisionPass : public PostStepPass {
   void setOptions(const SelfCollisionOptions& o) {
     options_ = o;
     list_valid_ = false;
+    cand_valid_ = false;
   }
   const ClothTriangles& triangles() const { return tris_; }
   const SelfCollisionStats& lastStats() const { return last_; }
@@ -299,13 +311,33 @@ class SelfCollisionPass : public PostStepPass {
   };
   void detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const;
   void buildProximityCache(const VecX& x_old, Real radius);
-  // Proximity search radius R = proximity_search_factor T, and the radius Rv of the candidate
-  // lists: R plus a margin of T / 2 (lists stay valid while particles move less than T / 4).
+  // Proximity search radius R = proximity_search_factor T; the radius Rp of the proximity list (R
+  // plus its margin) and the inflation Rc >= Rp of the candidate triangle-pair list.
   Real proximitySearchRadius(Real thickness) const { return options_.proximity_search_factor * thickness; }
-  Real proximityListRadius(Real thickness) const { return (options_.proximity_search_factor + 0.5) * thickness; }
+  Real proximityListRadius(Real thickness) const {
+    return (options_.proximity_search_factor + options_.proximity_list_margin) * thickness;
+  }
+  Real candidateListRadius(Real thickness) const {
+    return (options_.proximity_search_factor + options_.proximity_list_margin + options_.candidate_list_margin) *
+           thickness;
+  }
+  // Reference configuration of a Verlet list: the positions at its build.
+  struct MotionReference {
+    VecX x;
+    bool valid = false;
+  };
+  void setReference(MotionReference& ref, const VecX& y) const;
+  // True when every distance between features of y is larger than the same distance at the
+  // reference minus `budget`: the motion since then, less the best-fitting rigid motion (or none),
+  // moved no two particles apart by more than `budget` (docs/collision.md, "Broad phase and cost").
+  bool movedLessThan(const MotionReference& ref, const VecX& y, Real budget) const;
+  // The candidate boxes also cover the step continued by this many steps (a moving cloth keeps its
+  // candidate list for more steps; docs/collision.md).
+  static constexpr Real kCandidateLookahead = 1.0;
   // All pairs of triangles whose stored boxes overlap (into cand_), and the first crossing
   // detection of a pass from them.
-  void collectCandidates(const VecX& x_old, const VecX& x, Real inflate);
+  // `ahead` > 0 extends each swept box to x + ahead (x - x_old), the same step's motion continued.
+  void collectCandidates(const VecX& x_old, const VecX& x, Real inflate, Real ahead = 0);
   void detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const;
   long resolveProximity(const std::vector<ProxPair>& pairs, Real thickness, const VecX& x_old, const VecX& x_pred,
                         VecX& x, VecX& v, SelfCollisionStats& st);
@@ -341,15 +373,22 @@ class SelfCollisionPass : public PostStepPass {
   bool force_feedback_ = false;
   Real last_h_ = -1;  // step size of the last step it could be estimated for
   // Proximity candidate list (Verlet list): vertex-triangle and edge-edge pairs within the list
-  // radius at the positions prox_cache_x_.
+  // radius Rp at the positions x_old of its build (prox_ref_).
   std::vector<std::pair<Index, Index>> prox_cache_vt_, prox_cache_ee_;
-  // Validity of the candidate lists (cand_, prox_cache_*): positions x_old at the build, the swept
-  // box of every particle at the build (per DOF), radius and settings.
-  VecX list_old_;
-  std::vector<Real> list_lo_, list_hi_;
+  // Validity of the proximity list: reference positions, radius and settings.
+  MotionReference prox_ref_;
   Real list_radius_ = 0;
   bool list_edges_ = true;
   bool list_valid_ = false;
+  // Validity of the candidate triangle-pair list cand_: the swept box of every particle at the build
+  // (per DOF), the positions x at the build (cand_ref_), the inflation Rc.
+  std::vector<Real> list_lo_, list_hi_;
+  MotionReference cand_ref_;
+  Real cand_radius_ = 0;
+  bool cand_valid_ = false;
+  // Scratch kept between calls (no allocation per step): per-thread pair lists, boxes at x_old.
+  std::vector<std::vector<std::pair<Index, Index>>> local_pairs_, local_vt_, local_ee_;
+  std::vector<geom::Aabb> prox_tbox_, prox_ebox_;
   bool hash_current_ = false;           // hash_ holds this apply()'s boxes
   std::unordered_map<std::uint64_t, Vec3> contact_memory_;
   VecX contact_accel_;

@@ -145,6 +145,10 @@ class SpatialHash {
   std::vector<int> oversized_;          // ids of boxes not in the table
   std::vector<std::uint32_t> start_;    // bucket -> first entry (CSR), size table + 1
   std::vector<Entry> entries_;          // grouped by bucket, in box order within a bucket
+  // Scratch of build(), kept so that a rebuild every step allocates nothing.
+  std::vector<Cell> lo_, hi_;
+  std::vector<char> in_table_;
+  std::vector<std::uint32_t> bucket_, fill_;
 };
 
 template <class F>
