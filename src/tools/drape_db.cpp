@@ -54,7 +54,7 @@ const char* kUsage =
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
-    "         [--allow-no-rest] [--quiet]\n"
+    "         [--model particle_kes|choi_ko] [--allow-no-rest] [--quiet]\n"
     "         [--bracket]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
@@ -137,7 +137,7 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--cg-tolerance", "--cg-warm-start", "--allow-no-rest", "--quiet", "--bracket"});
+               "--cg-tolerance", "--cg-warm-start", "--model", "--allow-no-rest", "--quiet", "--bracket"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -211,6 +211,10 @@ int cmdBuild(const Args& a) {
       throw UsageError("--cg-tolerance must be in (0, 1)");
   }
   if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
+  if (a.has("--model")) {
+    c.model = a.get("--model");
+    if (c.model != "particle_kes" && c.model != "choi_ko") throw UsageError("--model: expected particle_kes or choi_ko");
+  }
   if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
   if (a.has("--settle-damping")) c.model_options.settle_damping = number(a.get("--settle-damping"), "--settle-damping");
   c.require_rest = !a.has("--allow-no-rest");
