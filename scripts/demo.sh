@@ -18,7 +18,7 @@ DB="$OUT/drapes.sqlite"
 mkdir -p "$OUT"
 BIN="$REPO/.build/ws/devel/lib/textile_handling"
 # shellcheck disable=SC1091
-source "$REPO/.build/ws/devel/setup.bash"
+set +u; source "$REPO/.build/ws/devel/setup.bash"; set -u
 echo "[demo] database $DB"
 # Builds what is missing (nothing when complete): the thesis's 6x6 quadrant grid of hold points, at the
 # resolution the recognizer needs for grasp frames within a few cm (docs/recognition.md).
@@ -28,10 +28,12 @@ echo "[demo] replaying $BAG"
 set +e
 roslaunch textile_handling demo.launch bag:="$BAG" database_path:="$DB" > "$OUT/replay.log" 2>&1 &
 LAUNCH=$!
-tail -n +1 -f "$OUT/replay.log" --pid=$LAUNCH | grep --line-buffered -E "^\[recognition\]|^    [a-z]|FATAL|\[ERROR\]"
+# (rosbag's progress line shares terminal lines with the printout: split at carriage returns)
+tail -n +1 -f "$OUT/replay.log" --pid=$LAUNCH | stdbuf -o0 tr '\r' '\n' |
+  grep --line-buffered -E "\[recognition\]|^    [a-z]|FATAL|\[ERROR\]" | sed -u 's/^.*\[recognition\]/[recognition]/'
 wait $LAUNCH
 set -e
-if grep -q "^\[recognition\] frame .* held at" "$OUT/replay.log"; then
+if grep -q "\[recognition\] frame .* held at" "$OUT/replay.log"; then
   echo "[demo] done; full log in $OUT/replay.log"
 else
   echo "[demo] no recognition result; see $OUT/replay.log" >&2

@@ -11,6 +11,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libpcl-dev libpcl-conversions-dev
   librosbag-dev librostest-dev python3-rostest ros-message-generation
   libroslib-dev libvisualization-msgs-dev libtf2-geometry-msgs-dev libtf2-msgs-dev
+  python3-geometry-msgs  # print_recognition.py imports the RecognitionResult message (PoseArray)
   libsqlite3-dev libeigen3-dev libopencv-dev libyaml-cpp-dev libgtest-dev googletest
 )
 
