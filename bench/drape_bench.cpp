@@ -59,32 +59,6 @@ struct Row {
   bool rest = false, diverged = false;
 };
 
-/// The benchmark scene: same settling damping for every configuration (it shortens the swinging,
-/// not the rest shape) and the definite Jacobian fix, which every implicit configuration needs.
-DrapeSceneSpec towelSpec(Real spacing, const std::string& hold) {
-  DrapeSceneSpec s;
-  s.textile = presetTextile("towel");
-  s.material = Material::cotton();
-  s.spacing = spacing;
-  s.hold = {HoldPoint{hold, Vec2::Zero()}};
-  s.hold_position = Vec3(0, 0, 1.0);
-  s.model_options.settle_damping = 4.0;
-  s.model_options.jacobian = JacobianMode::kDefiniteFix;
-  s.choi_ko_options.settle_damping = 4.0;  // same settling for the Choi-Ko rows (a rest-shape comparison)
-  s.settings.max_time = 8.0;  // Choi-Ko rows: 30 s (set with the model below; docs/choi_ko.md "Reaching rest")
-  s.settings.dt = 1e-3;
-  s.settings.dt_max = 0.02;
-  s.settings.error_tolerance = 1e-3;
-  return s;
-}
-
-/// The recommended fast settings of the semi-implicit integrator (docs/simulation.md).
-void fastSolver(DrapeSceneSpec& s) {
-  s.settings.dt_max = 0.0125;
-  s.settings.solver.relative_tolerance = 0.03;
-  s.settings.solver.warm_start = true;
-}
-
 void shapeError(const VecX& a, const VecX& b, Real* mean, Real* max) {
   const Index n = static_cast<Index>(a.size() / 3);
   Real sum = 0, worst = 0;
@@ -183,7 +157,7 @@ int main(int argc, char** argv) {
   const std::vector<Config> configs = {
       {"semi_implicit/error fast", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
-         fastSolver(s);
+         useFastSolverSettings(s.settings);
        }},
       {"semi_implicit/error", integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)},
       {"semi_implicit/thesis", integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kThesis, 1e-3)},
@@ -202,12 +176,12 @@ int main(int argc, char** argv) {
        }},
       {"semi_implicit/error fast + v3", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
-         fastSolver(s);
+         useFastSolverSettings(s.settings);
          s.self_collision = true;
        }},
       {"choi_ko semi_implicit/error fast", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
-         fastSolver(s);
+         useFastSolverSettings(s.settings);
          s.model = "choi_ko";
          s.settings.max_time = 30.0;
        }},
@@ -224,7 +198,7 @@ int main(int argc, char** argv) {
   auto selected = [&](const Config& c, Real d) {
     if (!only.empty() && c.label.find(only) == std::string::npos) return false;
     if (d >= 0.0099) return true;
-    DrapeSceneSpec probe = towelSpec(d, "corner_ul");
+    DrapeSceneSpec probe = benchmarkTowelSpec(d, "corner_ul");
     c.apply(probe);
     return probe.model == "particle_kes" && !probe.self_collision;
   };
@@ -242,13 +216,13 @@ int main(int argc, char** argv) {
         bool needed = false;
         for (const auto& c : configs) {
           if (needed || !selected(c, d)) continue;
-          DrapeSceneSpec probe = towelSpec(d, hold);
+          DrapeSceneSpec probe = benchmarkTowelSpec(d, hold);
           c.apply(probe);
           needed = (probe.model == key.first && probe.self_collision == collide) ||
                    (probe.model != "particle_kes" && key.first == "particle_kes" && !collide);
         }
         if (!needed) continue;
-        DrapeSceneSpec ref_spec = towelSpec(d, hold);
+        DrapeSceneSpec ref_spec = benchmarkTowelSpec(d, hold);
         ref_spec.model = key.first;
         ref_spec.self_collision = collide;
         // The Choi-Ko towel settles slowly (about 20 s simulated at d = 1 cm; docs/choi_ko.md).
@@ -270,7 +244,7 @@ int main(int argc, char** argv) {
       }
       for (const auto& c : configs) {
         if (!selected(c, d)) continue;
-        DrapeSceneSpec spec = towelSpec(d, hold);
+        DrapeSceneSpec spec = benchmarkTowelSpec(d, hold);
         c.apply(spec);
         spec.settings.max_wall_time = max_wall;
         const Run run = simulate(spec);

@@ -348,7 +348,7 @@ long SelfCollisionPass::apply(const VecX& x_old, VecX& x, VecX& v) {
   return events;
 }
 
-void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate) {
+void SelfCollisionPass::computeTriangleBoxes(const VecX& x_old, const VecX& x, Real inflate, Real ahead) {
   const Index T = tris_.numTriangles();
   boxes_.resize(static_cast<size_t>(T));
 #pragma omp parallel for if (T >= kParallelMin) schedule(static)
@@ -357,24 +357,20 @@ void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate
     for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
       b.extend(node3(x_old, c));
       b.extend(node3(x, c));
+      if (ahead > 0) b.extend(Vec3(node3(x, c) + ahead * (node3(x, c) - node3(x_old, c))));
     }
     if (inflate > 0) b.inflate(inflate);
     boxes_[static_cast<size_t>(t)] = b;
   }
+}
+
+void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate) {
+  computeTriangleBoxes(x_old, x, inflate, 0.0);
   hash_.build(boxes_, options_.cell_size_factor * tris_.spacing);
 }
 
 void SelfCollisionPass::refreshBoxes(const VecX& x_old, const VecX& x, Real stale) {
-  const Index T = tris_.numTriangles();
-#pragma omp parallel for if (T >= kParallelMin) schedule(static)
-  for (Index t = 0; t < T; ++t) {
-    geom::Aabb b;
-    for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
-      b.extend(node3(x_old, c));
-      b.extend(node3(x, c));
-    }
-    boxes_[static_cast<size_t>(t)] = b;
-  }
+  computeTriangleBoxes(x_old, x, 0.0, 0.0);
   query_inflate_ = stale;
 }
 
@@ -471,19 +467,8 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   // many boxes as triangles): the cell boxes, inflated by `inflate`, go into a hash that is queried
   // once per cell with its own box, keeping the partners with a larger id; the triangle pairs of
   // two such cells are then filtered with the triangle boxes.
-  const Index T = tris_.numTriangles();
   const Index G = static_cast<Index>(groups_.size());
-  boxes_.resize(static_cast<size_t>(T));
-#pragma omp parallel for if (T >= kParallelMin) schedule(static)
-  for (Index t = 0; t < T; ++t) {
-    geom::Aabb b;
-    for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
-      b.extend(node3(x_old, c));
-      b.extend(node3(x, c));
-      if (ahead > 0) b.extend(Vec3(node3(x, c) + ahead * (node3(x, c) - node3(x_old, c))));
-    }
-    boxes_[static_cast<size_t>(t)] = b;
-  }
+  computeTriangleBoxes(x_old, x, 0.0, ahead);
   group_boxes_.resize(static_cast<size_t>(G));
 #pragma omp parallel for if (G >= kParallelMin) schedule(static)
   for (Index g = 0; g < G; ++g) {

@@ -29,8 +29,10 @@ Vec2 resolveHold(const TextileOutline& t, const HoldPoint& h) {
 
 }  // namespace
 
+bool isClothModelName(const std::string& name) { return name == "particle_kes" || name == "choi_ko"; }
+
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
-  if (spec.model != "particle_kes" && spec.model != "choi_ko")
+  if (!isClothModelName(spec.model))
     throw std::invalid_argument("unknown cloth model '" + spec.model + "' (available: particle_kes, choi_ko)");
   if (spec.hold.empty() && spec.pinned_regions.empty())
     throw std::invalid_argument("scene holds nothing: give at least one hold point or pinned region");
@@ -513,6 +515,31 @@ DrapeSceneSpec loadDrapeSceneYaml(const std::string& path) {
   std::fclose(f);
   const auto slash = path.find_last_of('/');
   return parseDrapeSceneYaml(text, slash == std::string::npos ? "." : path.substr(0, slash));
+}
+
+DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold) {
+  DrapeSceneSpec s;
+  s.textile = presetTextile("towel");
+  s.material = Material::cotton();
+  s.spacing = spacing;
+  s.hold = {HoldPoint{hold, Vec2::Zero()}};
+  s.hold_position = Vec3(0, 0, 1.0);
+  // The same settling damping for every configuration (it shortens the swinging, not the rest shape)
+  // and the definite Jacobian fix, which every implicit configuration needs.
+  s.model_options.settle_damping = 4.0;
+  s.model_options.jacobian = JacobianMode::kDefiniteFix;
+  s.choi_ko_options.settle_damping = 4.0;
+  s.settings.max_time = 8.0;
+  s.settings.dt = 1e-3;
+  s.settings.dt_max = 0.02;
+  s.settings.error_tolerance = 1e-3;
+  return s;
+}
+
+void useFastSolverSettings(SimulationSettings& s) {
+  s.dt_max = 0.0125;
+  s.solver.relative_tolerance = 0.03;
+  s.solver.warm_start = true;
 }
 
 }  // namespace textile_handling

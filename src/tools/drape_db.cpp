@@ -213,7 +213,8 @@ int cmdBuild(const Args& a) {
   if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
   if (a.has("--model")) {
     c.model = a.get("--model");
-    if (c.model != "particle_kes" && c.model != "choi_ko") throw UsageError("--model: expected particle_kes or choi_ko");
+    // Checked before the database file is opened (and created).
+    if (!isClothModelName(c.model)) throw UsageError("--model: expected particle_kes or choi_ko");
   }
   if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
   if (a.has("--settle-damping")) c.model_options.settle_damping = number(a.get("--settle-damping"), "--settle-damping");

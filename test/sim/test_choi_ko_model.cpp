@@ -1110,26 +1110,16 @@ TEST(ChoiKoStability, StableAtTenMillisecondsAtOneCentimetreResolution) {
 
 // ---- reaching rest (docs/choi_ko.md, "Reaching rest") -------------------------------------------------
 
-// The benchmark's towel scene (bench/drape_bench.cpp: towelSpec + fastSolver) with the Choi-Ko model's
-// default options: 64 x 46 cm cotton held at `hold`, settle damping 4/s, semi-implicit Euler with the
-// error-controlled step (dt_max 12.5 ms, CG tolerance 0.03, warm start), default rest thresholds.
+// The benchmark's towel scene (benchmarkTowelSpec + useFastSolverSettings, as drape_bench's Choi-Ko rows)
+// with the Choi-Ko model's default options: settle damping 4/s, semi-implicit Euler with the
+// error-controlled step, default rest thresholds.
 DrapeSceneSpec benchTowel(Real spacing, const std::string& hold, Real max_time) {
-  DrapeSceneSpec s;
-  s.textile = presetTextile("towel");
-  s.material = Material::cotton();
-  s.spacing = spacing;
-  s.hold = {HoldPoint{hold, Vec2::Zero()}};
-  s.hold_position = Vec3(0, 0, 1.0);
+  DrapeSceneSpec s = benchmarkTowelSpec(spacing, hold);
+  useFastSolverSettings(s.settings);
   s.model = "choi_ko";
-  s.choi_ko_options.settle_damping = 4.0;
   s.settings.integrator = IntegratorType::kSemiImplicitEuler;
   s.settings.policy = StepPolicy::kErrorControlled;
   s.settings.max_time = max_time;
-  s.settings.dt = 1e-3;
-  s.settings.dt_max = 0.0125;
-  s.settings.error_tolerance = 1e-3;
-  s.settings.solver.relative_tolerance = 0.03;
-  s.settings.solver.warm_start = true;
   return s;
 }
 

@@ -268,6 +268,9 @@ class SelfCollisionPass : public PostStepPass {
     bool operator==(const Hit& o) const { return a == o.a && t == o.t; }
   };
 
+  /// boxes_[t]: the box swept by triangle t from x_old to x (and `ahead` steps further along the same
+  /// motion when > 0), inflated by `inflate`.
+  void computeTriangleBoxes(const VecX& x_old, const VecX& x, Real inflate, Real ahead);
   void buildHash(const VecX& x_old, const VecX& x, Real inflate);
   // Recomputes the swept triangle boxes for the current x without rebuilding the hash; its stored
   // boxes are then stale by at most `stale` (queries are inflated by that much).

@@ -79,6 +79,8 @@ struct DrapeScene {
 
 /// Builds a scene; throws std::invalid_argument with a clear message on bad input.
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec);
+/// A cloth model buildDrapeScene() knows: "particle_kes" or "choi_ko".
+bool isClothModelName(const std::string& name);
 
 /// Parses a scene from YAML text; relative material paths resolve against `base_dir`.
 /// Throws std::invalid_argument naming the offending field.
@@ -87,5 +89,13 @@ DrapeSceneSpec loadDrapeSceneYaml(const std::string& path);
 
 /// Vertical extent of the textile below its first held point [m].
 Real hangingDepth(const DrapeScene& scene, const VecX& x);
+
+/// The benchmark's towel scene (drape_bench, docs/simulation.md): the 64 x 46 cm cotton towel at spacing
+/// `spacing` held at the named point `hold` 1 m up, settle damping 4/s for both models, the definite-fix
+/// Jacobian, 8 s cap, error-controlled steps (tolerance 1 mm, dt_max 20 ms).
+DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold);
+/// The recommended fast semi-implicit settings (the demo scene's): dt_max 12.5 ms, CG tolerance 0.03
+/// with warm start.
+void useFastSolverSettings(SimulationSettings& s);
 
 }  // namespace textile_handling
