@@ -175,6 +175,8 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
     if (c.projection.type == vision::ProjectionType::kOrthographic && name.rfind("projection.", 0) == 0) continue;
     t += name + ": " + fmt(value) + "\n";
   }
+  // Only when on, so that the parameter texts of builds without collision stay as they were.
+  if (c.self_collision) t += "self_collision: v3\n";
   if (bracket_corner >= 0) t += "hold_bracket: " + std::to_string(bracket_corner) + "\n";
   return t;
 }
@@ -192,6 +194,7 @@ DrapeSceneSpec DrapeDatabaseBuilder::sceneSpec(const DrapeBuildConfig& c, const 
   s.model_options = c.model_options;
   s.settings = c.settings;
   s.settings.trajectory_every = 0;
+  s.self_collision = c.self_collision;
   return s;
 }
 
@@ -500,6 +503,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
               }
               DrapeScene scene = buildDrapeScene(spec);
               DrapeSimulation sim(*scene.model, scene.pins, scene.spec.settings, scene.x0, scene.v0);
+              sim.setPostStepPass(scene.postStepPass());
               const RunResult r = sim.run();
               wall += r.wall_time;
               std::string why;

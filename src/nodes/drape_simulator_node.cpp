@@ -105,6 +105,7 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   ro.build.workers = positiveIntParam(pnh, "worker_threads", 2);
   ro.build.threads_per_simulation = 1;
   ro.build.hold_height = hold_position_.z();
+  pnh.param("database_self_collision", ro.build.self_collision, false);
   ro.max_hold_points = positiveIntParam(pnh, "max_hold_points", ro.max_hold_points);
   std::vector<std::string> presets;
   pnh.param("preset_textiles", presets, presets);

@@ -55,7 +55,7 @@ const char* kUsage =
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
     "         [--model particle_kes|choi_ko] [--allow-no-rest] [--quiet]\n"
-    "         [--bracket]\n"
+    "         [--bracket] [--self-collision]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
@@ -137,7 +137,8 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--cg-tolerance", "--cg-warm-start", "--model", "--allow-no-rest", "--quiet", "--bracket"});
+               "--cg-tolerance", "--cg-warm-start", "--model", "--allow-no-rest", "--quiet", "--bracket",
+               "--self-collision"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -211,6 +212,7 @@ int cmdBuild(const Args& a) {
       throw UsageError("--cg-tolerance must be in (0, 1)");
   }
   if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
+  if (a.has("--self-collision")) c.self_collision = true;
   if (a.has("--model")) {
     c.model = a.get("--model");
     // Checked before the database file is opened (and created).
@@ -489,7 +491,8 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   try {
     if (cmd == "build")
-      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start"}));
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start",
+                                             "--self-collision"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));

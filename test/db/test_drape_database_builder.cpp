@@ -385,3 +385,34 @@ TEST(DrapeDatabaseBuilder, BracketedHoldPointsGetOneRowPerCornerParticle) {
   DrapeDatabaseBuilder again(db, c);
   EXPECT_EQ(again.build().simulated_now, 0);
 }
+
+TEST(DrapeDatabaseBuilder, SelfCollisionKeepsStoredShapesFreeOfIntersections) {
+  // The 30 x 30 cm square held at its centre folds onto itself (thesis 5.4.3): without collision
+  // handling its rest shape passes through itself, with self_collision it does not. The setting is
+  // part of the parameter text, so the two builds are separate rows of the same file.
+  TempDatabase t("self_collision");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c = smallSquare();
+  c.spacing = 0.025;
+  c.hold_points = {Vec2(0.15, 0.15)};
+  const std::string text_off = DrapeDatabaseBuilder::parametersText(c);
+  const DrapeBuildReport off = DrapeDatabaseBuilder(db, c).build();
+  c.self_collision = true;
+  EXPECT_NE(DrapeDatabaseBuilder::parametersText(c), text_off);
+  EXPECT_NE(DrapeDatabaseBuilder::parametersText(c).find("self_collision: v3"), std::string::npos);
+  const DrapeBuildReport on = DrapeDatabaseBuilder(db, c).build();
+  ASSERT_EQ(off.failed_now, 0);
+  ASSERT_EQ(on.failed_now, 0);
+  ASSERT_EQ(on.simulated_now, 1) << "the collision build must not resume the rows without collision";
+  const DrapeScene scene = buildDrapeScene(DrapeDatabaseBuilder::sceneSpec(c, Vec2(0.15, 0.15)));
+  const ClothTriangles tris = scene.triangles();
+  std::map<std::string, long> pairs;
+  for (const SimulationRecord& s : db.simulations()) {
+    ASSERT_EQ(s.status, SimulationStatus::kDone);
+    const bool with = s.parameters.find("self_collision: v3") != std::string::npos;
+    pairs[with ? "on" : "off"] = countIntersectingTrianglePairs(tris, db.positions(s.id));
+  }
+  ASSERT_EQ(pairs.size(), 2u);
+  EXPECT_GT(pairs["off"], 0) << "the scene no longer tests anything: the square does not pass through itself";
+  EXPECT_EQ(pairs["on"], 0);
+}

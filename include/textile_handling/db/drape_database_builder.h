@@ -49,6 +49,10 @@ struct DrapeBuildConfig {
   std::string model = "particle_kes";
   ParticleModelOptions model_options = defaultModelOptions();
   SimulationSettings settings = defaultSimulationSettings();
+  /// Self-collision v3 with the contact forces (default SelfCollisionOptions, as the demo scene;
+  /// docs/collision.md) in every simulation. Off by default: about 1.7 times the simulation cost; without
+  /// it a rest shape can pass through itself (docs/database.md). Written into the parameter text only when on.
+  bool self_collision = false;
   /// A run that hits settings.max_time without reaching rest is stored as failed (true) or as done
   /// with rest_reached = false (false).
   bool require_rest = true;
