@@ -1112,20 +1112,6 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       region.push_back(p);
     }
   };
-  // Skipping what cannot change (exact): a pair or edge whose last evaluation applied nothing gives
-  // the same answer again as long as none of its particles has moved since, because everything else it
-  // reads (x_old, x_pred, its multipliers, the target length) is fixed. Every move of a particle of x
-  // gets a new stamp; an evaluation remembers the stamp count.
-  std::vector<std::uint64_t> moved_at(static_cast<size_t>(nv), 0);
-  std::uint64_t stamp = 0;
-  constexpr std::uint64_t kNever = std::numeric_limits<std::uint64_t>::max();
-  std::vector<std::uint64_t> pair_idle_since(pairs.size(), kNever);  // kNever: evaluate
-  auto unchangedSince = [&](std::uint64_t since, const Index* idx, int count) {
-    if (since == kNever) return false;
-    for (int j = 0; j < count; ++j)
-      if (moved_at[static_cast<size_t>(idx[j])] > since) return false;
-    return true;
-  };
   auto applyPair = [&](size_t k, const Vec3& d, VecX& s) {
     const ProxPair& pp = pairs[k];
     for (int j = 0; j < 4; ++j) {
@@ -1133,12 +1119,10 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       if (im > 0 && pp.w[j] != 0) {
         node3(s, pp.idx[j]) += (pp.w[j] * im) * d;
         touch(pp.idx[j]);
-        moved_at[static_cast<size_t>(pp.idx[j])] = ++stamp;
       }
     }
   };
   std::vector<char> edge_listed(propagate ? static_cast<size_t>(ne) : 0, 0);
-  std::vector<std::uint64_t> edge_idle_since(propagate ? static_cast<size_t>(ne) : 0, kNever);
   std::vector<Index> edges;
   std::vector<Real> edge_len;  // target lengths (after the step), by position in `edges`
   for (int it = 0; it < options_.proximity_iterations; ++it) {
@@ -1146,8 +1130,6 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
     for (size_t k = 0; k < pairs.size(); ++k) {
       if (!(W[k] > 0)) continue;
       const ProxPair& pp = pairs[k];
-      if (unchangedSince(pair_idle_since[k], pp.idx, 4)) continue;
-      pair_idle_since[k] = kNever;
       Vec3 rel = Vec3::Zero();
       for (int j = 0; j < 4; ++j) rel += pp.w[j] * (node3(x, pp.idx[j]) - node3(x_old, pp.idx[j]));
       const Real delta = pp.n.dot(rel);
@@ -1161,10 +1143,7 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       const Real dn = n_new - ln[k];
       const Vec3 dt = t_new - lt[k];
       const Real moved = (std::abs(dn) + dt.norm()) * W[k];
-      if (!(moved > tol)) {
-        pair_idle_since[k] = stamp;
-        continue;
-      }
+      if (!(moved > tol)) continue;
       applyPair(k, dn * pp.n + dt, x);
       ln[k] = n_new;
       lt[k] = t_new;
@@ -1192,31 +1171,23 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       }
     }
     for (size_t k = 0; k < edges.size(); ++k) {
-      const Index e = edges[k];
-      const auto& ed = tris_.edges[static_cast<size_t>(e)];
+      const auto& ed = tris_.edges[static_cast<size_t>(edges[k])];
       const Index a = ed[0], b = ed[1];
-      if (unchangedSince(edge_idle_since[static_cast<size_t>(e)], ed.data(), 2)) continue;
-      edge_idle_since[static_cast<size_t>(e)] = kNever;
       const Real wa = inv_mass_[static_cast<size_t>(a)], wb = inv_mass_[static_cast<size_t>(b)];
       if (!(wa + wb > 0)) continue;
       Vec3 u = node3(x, a) - node3(x, b);
       const Real len = u.norm();
       if (!(len > 0)) continue;
       const Real c = len - edge_len[k];
-      if (!(std::abs(c) > tol)) {
-        edge_idle_since[static_cast<size_t>(e)] = stamp;
-        continue;
-      }
+      if (!(std::abs(c) > tol)) continue;
       u *= c / ((wa + wb) * len);
       if (wa > 0) {
         node3(x, a) -= wa * u;
         touch(a);
-        moved_at[static_cast<size_t>(a)] = ++stamp;
       }
       if (wb > 0) {
         node3(x, b) += wb * u;
         touch(b);
-        moved_at[static_cast<size_t>(b)] = ++stamp;
       }
       change = std::max(change, std::abs(c));
       ++st.proximity_edge_projections;
