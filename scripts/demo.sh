@@ -7,7 +7,8 @@
 #  2. replays the bundled bag (test/data/towel_replay_a.bag: the towel hanging from a gripper in front
 #     of the cell camera, simulated independently at d = 0.5 cm and held at a point that is not a
 #     database hold point) with simulated time;
-#  3. prints the recognised textile, hold point and grasp poses.
+#  3. prints the recognised textile, hold point and grasp poses (and, for a bag with a .truth.yaml next to
+#     it, how far the grasp poses are from the ground truth).
 # Usage: bash scripts/demo.sh [BAG]
 set -euo pipefail
 REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -26,7 +27,9 @@ OMP_WAIT_POLICY=passive "$BIN/drape_db" build --db "$DB" --textile towel --grid 
 "$BIN/drape_db" list --db "$DB"
 echo "[demo] replaying $BAG"
 set +e
-roslaunch textile_handling demo.launch bag:="$BAG" database_path:="$DB" > "$OUT/replay.log" 2>&1 &
+TRUTH=""
+[ -f "$BAG.truth.yaml" ] && TRUTH="$BAG.truth.yaml"
+roslaunch textile_handling demo.launch bag:="$BAG" database_path:="$DB" truth:="$TRUTH" > "$OUT/replay.log" 2>&1 &
 LAUNCH=$!
 # (rosbag's progress line shares terminal lines with the printout: split at carriage returns)
 tail -n +1 -f "$OUT/replay.log" --pid=$LAUNCH | stdbuf -o0 tr '\r' '\n' |
