@@ -11,6 +11,7 @@
 #include <map>
 #include <set>
 
+#include "../test_support.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/sim/particle_cloth_model.h"
@@ -20,22 +21,9 @@ using namespace textile_handling::db;
 
 namespace {
 
-class TempDatabase {
+class TempDatabase : public test_support::TempDatabase {
  public:
-  explicit TempDatabase(const std::string& name) {
-    path_ = (std::filesystem::temp_directory_path() /
-             ("th_db_builder_" + std::to_string(::getpid()) + "_" + name + ".sqlite"))
-                .string();
-    remove();
-  }
-  ~TempDatabase() { remove(); }
-  const std::string& path() const { return path_; }
-
- private:
-  void remove() {
-    for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + s);
-  }
-  std::string path_;
+  explicit TempDatabase(const std::string& name) : test_support::TempDatabase(name, "th_db_builder") {}
 };
 
 // 30 x 30 cm square, d = 3 cm, lattice 10 cm: quadrant x, y in {0, .10, .15} -> 9 simulated, 25 in all.

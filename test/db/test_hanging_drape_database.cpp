@@ -15,6 +15,7 @@
 #include <set>
 #include <thread>
 
+#include "../test_support.h"
 #include "textile_handling/db/blob_codec.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_index.h"
@@ -26,22 +27,9 @@ using namespace textile_handling::db;
 
 namespace {
 
-class TempDatabase {
+class TempDatabase : public test_support::TempDatabase {
  public:
-  explicit TempDatabase(const std::string& name) {
-    path_ = (std::filesystem::temp_directory_path() /
-             ("th_db_test_" + std::to_string(::getpid()) + "_" + name + ".sqlite"))
-                .string();
-    remove();
-  }
-  ~TempDatabase() { remove(); }
-  const std::string& path() const { return path_; }
-
- private:
-  void remove() {
-    for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(path_ + s);
-  }
-  std::string path_;
+  explicit TempDatabase(const std::string& name) : test_support::TempDatabase(name, "th_db_test") {}
 };
 
 // A towel at d = 4 cm hanging straight down from the middle of its top edge, with a gentle wave.

@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "recognition_test_support.h"
 #include "textile_handling/recognition/point_cloud_segmentation.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/recognition/segmentation.h"
@@ -16,21 +17,10 @@
 
 using namespace textile_handling;
 using namespace textile_handling::recognition;
+using textile_handling::test_support::throwsCode;
+using textile_handling::test_support::vga;
 
 namespace {
-
-vision::PinholeIntrinsics vga() { return vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480}; }
-
-bool throwsCode(const std::function<void()>& f, RecognitionErrorCode code) {
-  try {
-    f();
-  } catch (const RecognitionError& e) {
-    return e.code() == code;
-  } catch (...) {
-    return false;
-  }
-  return false;
-}
 
 double maskIou(const cv::Mat& a, const cv::Mat& b) {
   cv::Mat i, u;

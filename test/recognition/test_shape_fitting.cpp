@@ -6,11 +6,14 @@
 #include <limits>
 #include <vector>
 
+#include "recognition_test_support.h"
 #include "textile_handling/recognition/shape_fitting.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 using namespace textile_handling;
 using namespace textile_handling::recognition;
+using textile_handling::test_support::throwsCode;
+using textile_handling::test_support::vga;
 
 namespace {
 
@@ -19,8 +22,6 @@ struct Sheet {
   std::vector<vision::Triangle> triangles;
   Index top = 0;  // held vertex (top middle)
 };
-
-vision::PinholeIntrinsics vga() { return vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480}; }
 
 // A 30 x 40 cm sheet at 1.5 cm spacing hanging below (0, -0.2, 1.2) in the optical frame (y down),
 // bent about the vertical axis (a cylinder of radius 0.4 m, bulging towards the camera), plus

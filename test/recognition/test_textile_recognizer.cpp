@@ -21,6 +21,7 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "recognition_test_support.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/recognition/point_cloud_segmentation.h"
@@ -30,6 +31,8 @@
 
 using namespace textile_handling;
 using namespace textile_handling::recognition;
+using textile_handling::test_support::throwsCode;
+using textile_handling::test_support::vga;
 
 namespace {
 
@@ -85,8 +88,6 @@ vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
   pose.rotation = pose.rotation * Eigen::AngleAxisd(4.0 * kPi / 180.0, Vec3::UnitZ()).toRotationMatrix();
   return pose;
 }
-
-vision::PinholeIntrinsics vga() { return vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480}; }
 
 // Renders the truth (its gripper turned by `turn` degrees about the hold axis) and builds the observation.
 // The heading reference is the gripper's x axis, so the hold frame turns with the gripper.
@@ -250,18 +251,6 @@ void report(const char* what, const Truth& t, double az, const RecognitionResult
               1e3 * e.max_lateral, 1e3 * e.max_depth, 1e3 * t.oracle_m, (int)r.shape_fit.applied,
               1e3 * r.shape_fit.max_displacement_m, 1e3 * r.shape_fit.mean_depth_residual_before_m,
               1e3 * r.shape_fit.mean_depth_residual_after_m, r.total_ms);
-}
-
-bool throwsCode(const std::function<void()>& f, RecognitionErrorCode code, std::string* msg = nullptr) {
-  try {
-    f();
-  } catch (const RecognitionError& e) {
-    if (msg) *msg = e.what();
-    return e.code() == code;
-  } catch (...) {
-    return false;
-  }
-  return false;
 }
 
 }  // namespace

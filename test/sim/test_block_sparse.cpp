@@ -1,6 +1,7 @@
 // Tests of BlockPattern / BlockSparseMatrix (textile_handling/sim/block_sparse.h): pattern
 // construction and lookup, and y = A x against a dense reference for block sizes 3 and 5 (the fixed-size
 // kernels) and generic sizes (1, 2, 4).
+#include "../test_support.h"
 #include "textile_handling/sim/block_sparse.h"
 
 #include <gtest/gtest.h>
@@ -21,29 +22,9 @@
 namespace textile_handling {
 namespace {
 
+using test_support::ThreadScope;
+
 using Couplings = std::vector<std::pair<Index, Index>>;
-
-// Sets the OpenMP thread count for a scope (parallel regions are slow on a loaded machine, so the
-// checks run single-threaded except where the thread count is the point).
-class ThreadScope {
- public:
-  explicit ThreadScope(int n) {
-#ifdef _OPENMP
-    saved_ = omp_get_max_threads();
-    omp_set_num_threads(n);
-#else
-    (void)n;
-#endif
-  }
-  ~ThreadScope() {
-#ifdef _OPENMP
-    omp_set_num_threads(saved_);
-#endif
-  }
-
- private:
-  int saved_ = 1;
-};
 
 Couplings randomCouplings(std::mt19937& gen, Index n, int count) {
   std::uniform_int_distribution<Index> node(0, n - 1);

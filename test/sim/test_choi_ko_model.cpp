@@ -26,6 +26,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
+#include "../test_support.h"
 #include "textile_handling/sim/choi_ko_model.h"
 
 #include <gtest/gtest.h>
@@ -52,27 +53,9 @@
 namespace textile_handling {
 namespace {
 
+using test_support::ThreadScope;
+
 using namespace choi_ko;
-
-class ThreadScope {
- public:
-  explicit ThreadScope(int n) {
-#ifdef _OPENMP
-    saved_ = omp_get_max_threads();
-    omp_set_num_threads(n);
-#else
-    (void)n;
-#endif
-  }
-  ~ThreadScope() {
-#ifdef _OPENMP
-    omp_set_num_threads(saved_);
-#endif
-  }
-
- private:
-  int saved_ = 1;
-};
 
 // ---- kernels ----------------------------------------------------------------------------------------
 

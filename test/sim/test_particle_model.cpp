@@ -18,6 +18,7 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
+#include "../test_support.h"
 #include "textile_handling/sim/particle_cloth_model.h"
 
 #include <gtest/gtest.h>
@@ -45,31 +46,11 @@
 namespace textile_handling {
 namespace {
 
+using test_support::ThreadScope;
+
 constexpr Real kForceTol = 1e-6;
 constexpr Real kJacBlockTol = 1e-5;
 constexpr Real kJacFloor = 1e-7;
-
-// Sets the OpenMP thread count for a scope. The FD loops run single-threaded: results do not depend
-// on the thread count (tested below), and thread-team switches are slow on a loaded machine.
-class ThreadScope {
- public:
-  explicit ThreadScope(int n) {
-#ifdef _OPENMP
-    saved_ = omp_get_max_threads();
-    omp_set_num_threads(n);
-#else
-    (void)n;
-#endif
-  }
-  ~ThreadScope() {
-#ifdef _OPENMP
-    omp_set_num_threads(saved_);
-#endif
-  }
-
- private:
-  int saved_ = 1;
-};
 
 struct WorstErrors {
   Real force = 0, dfdx = 0, dfdv = 0;
