@@ -293,7 +293,13 @@ void TextileRecognizerNode::process(const Frame& f) {
       return publishFailure(h, e.what());
     }
   }
-  history_.push_back(Past{h.stamp, yaw, obs});
+  // A deep copy: obs's images share the buffers of this frame's messages (toCvShare), which are freed
+  // once the frame is done, and a later fusion reads them again.
+  Past past{h.stamp, yaw, obs};
+  past.observation.image = obs.image.clone();
+  past.observation.depth = obs.depth.clone();
+  past.observation.mask = obs.mask.clone();
+  history_.push_back(std::move(past));
   if (history_.size() > 16) history_.pop_front();
   // Poses: camera frame -> gripper frame.
   const Eigen::Isometry3d gripper_camera = camera_gripper.inverse();

@@ -50,13 +50,41 @@ Vec3 backProject(const vision::PinholeIntrinsics& k, double u, double v, double 
 VecX fitShapeToDepth(const VecX& x0, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
                      const cv::Mat& depth, const cv::Mat& mask, const vision::PinholeIntrinsics& k,
                      const ShapeFitOptions& o, ShapeFitReport* report) {
+  DepthView view;
+  view.depth = depth;
+  view.mask = mask;
+  view.intrinsics = k;
+  return fitShapeToDepthViews(x0, triangles, fixed_vertex, {view}, o, report);
+}
+
+namespace {
+
+// What a view needs in every iteration: the nearest mask pixel of every pixel (for vertices projecting
+// outside the mask).
+struct PreparedView {
+  const DepthView* v = nullptr;
+  cv::Mat dist, labels;
+  std::vector<cv::Point> label_pixel;
+};
+
+}  // namespace
+
+VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
+                          const std::vector<DepthView>& views, const ShapeFitOptions& o, ShapeFitReport* report) {
   ShapeFitReport rep;
   const Index n = static_cast<Index>(x0.size() / 3);
   if (x0.size() % 3 != 0 || n == 0) throw std::invalid_argument("fitShapeToDepth: positions must be 3 per vertex");
   if (fixed_vertex >= n) throw std::invalid_argument("fitShapeToDepth: fixed vertex out of range");
-  if (depth.type() != CV_32FC1 || mask.type() != CV_8UC1 || depth.size() != mask.size() || depth.cols != k.width ||
-      depth.rows != k.height)
-    throw std::invalid_argument("fitShapeToDepth: depth (CV_32FC1) and mask (CV_8UC1) must have the intrinsics' size");
+  if (views.empty()) throw std::invalid_argument("fitShapeToDepth: no view");
+  for (const DepthView& v : views) {
+    const auto& k = v.intrinsics;
+    if (v.depth.type() != CV_32FC1 || v.mask.type() != CV_8UC1 || v.depth.size() != v.mask.size() ||
+        v.depth.cols != k.width || v.depth.rows != k.height)
+      throw std::invalid_argument("fitShapeToDepth: depth (CV_32FC1) and mask (CV_8UC1) must have the intrinsics' size");
+    if (!v.rotation.allFinite() || !v.translation.allFinite() ||
+        !(v.rotation * v.rotation.transpose()).isApprox(Mat3::Identity(), 1e-6))
+      throw std::invalid_argument("fitShapeToDepth: a view's rotation must be finite and orthonormal");
+  }
   if (!(o.iterations >= 1) || !(o.edge_weight > 0) || !(o.anchor_weight >= 0) || !(o.silhouette_weight >= 0) ||
       !(o.max_correspondence_m > 0) || !(o.uncovered_step_px >= 1))
     throw std::invalid_argument("fitShapeToDepth: invalid options");
@@ -76,18 +104,20 @@ VecX fitShapeToDepth(const VecX& x0, const std::vector<vision::Triangle>& triang
     edges.assign(seen.begin(), seen.end());
   }
 
-  // Nearest mask pixel of every pixel (for vertices projecting outside the mask).
-  cv::Mat not_mask = mask == 0;  // 255 outside
-  cv::Mat dist, labels;
-  cv::distanceTransform(not_mask, dist, labels, cv::DIST_L2, cv::DIST_MASK_PRECISE, cv::DIST_LABEL_PIXEL);
-  std::vector<cv::Point> label_pixel(1, cv::Point(-1, -1));
-  {
+  std::vector<PreparedView> prepared;
+  for (const DepthView& v : views) {
+    PreparedView pv;
+    pv.v = &v;
+    cv::Mat not_mask = v.mask == 0;  // 255 outside
+    cv::distanceTransform(not_mask, pv.dist, pv.labels, cv::DIST_L2, cv::DIST_MASK_PRECISE, cv::DIST_LABEL_PIXEL);
     // Labels number the zero pixels of not_mask (the mask pixels) in scan order, starting at 1.
-    for (int y = 0; y < mask.rows; ++y)
-      for (int x = 0; x < mask.cols; ++x)
-        if (mask.at<std::uint8_t>(y, x)) label_pixel.emplace_back(x, y);
+    pv.label_pixel.emplace_back(-1, -1);
+    for (int y = 0; y < v.mask.rows; ++y)
+      for (int x = 0; x < v.mask.cols; ++x)
+        if (v.mask.at<std::uint8_t>(y, x)) pv.label_pixel.emplace_back(x, y);
+    if (pv.label_pixel.size() >= 2) prepared.push_back(std::move(pv));
   }
-  if (label_pixel.size() < 2) {
+  if (prepared.empty()) {
     rep.note = "empty mask";
     if (report) *report = rep;
     return x0;
@@ -95,100 +125,110 @@ VecX fitShapeToDepth(const VecX& x0, const std::vector<vision::Triangle>& triang
 
   VecX x = x0;
   const double lambda = o.edge_weight, mu = o.anchor_weight;
-  // The system matrix's constant part: lambda L + mu I (+ the data weights per iteration).
   for (int it = 0; it < o.iterations; ++it) {
-    // Visibility by z-buffer.
-    vision::ShadedRenderOptions rop;
-    rop.intrinsics = k;
-    rop.noise_sigma = 0;
-    rop.render_mask = true;
-    rop.render_depth = true;
-    const vision::ShadedImage img = vision::renderShaded(x, triangles, rop);
     std::vector<double> w(static_cast<size_t>(n), 0.0);
     std::vector<Vec3> target_sum(static_cast<size_t>(n), Vec3::Zero());
-    std::vector<Vec2> proj(static_cast<size_t>(n), Vec2(-1, -1));
-    std::vector<char> visible(static_cast<size_t>(n), 0);
     int depth_corr = 0, sil_corr = 0, n_visible = 0;
     double residual = 0;
-    for (Index i = 0; i < n; ++i) {
-      const Vec3 p = x.segment<3>(3 * i);
-      if (!(p.z() > 0.01)) continue;
-      const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
-      const int iu = static_cast<int>(std::lround(u)), iv = static_cast<int>(std::lround(v));
-      if (iu < 0 || iv < 0 || iu >= k.width || iv >= k.height) continue;
-      const float zr = img.depth.at<float>(iv, iu);
-      if (validDepth(zr) && p.z() > zr + o.visibility_slack_m) continue;  // hidden behind the mesh
-      visible[static_cast<size_t>(i)] = 1;
-      proj[static_cast<size_t>(i)] = Vec2(u, v);
-      ++n_visible;
-      if (i == fixed_vertex) continue;
-      if (mask.at<std::uint8_t>(iv, iu)) {
-        double zm = 0;
-        if (!sampleDepth(depth, mask, u, v, o.depth_discontinuity_m, &zm)) continue;
-        const Vec3 t = backProject(k, u, v, zm);
-        const double d = (t - p).norm();
-        if (d > o.max_correspondence_m) continue;
-        // Cauchy weight: a wrong layer or a stray pixel pulls little.
-        const double wr = 1.0 / (1.0 + (d / o.robust_scale_m) * (d / o.robust_scale_m));
-        w[static_cast<size_t>(i)] += wr;
-        target_sum[static_cast<size_t>(i)] += wr * t;
-        residual += d;
-        ++depth_corr;
-      } else if (o.silhouette_weight > 0 && dist.at<float>(iv, iu) > o.silhouette_slack_px) {
-        const int lbl = labels.at<int>(iv, iu);
-        if (lbl <= 0 || lbl >= static_cast<int>(label_pixel.size())) continue;
-        const cv::Point q = label_pixel[static_cast<size_t>(lbl)];
-        const float zm = depth.at<float>(q.y, q.x);
-        const double z = validDepth(zm) && std::abs(zm - p.z()) <= o.max_correspondence_m ? zm : p.z();
-        const Vec3 t = backProject(k, q.x, q.y, z);
-        if ((t - p).norm() > 3 * o.max_correspondence_m) continue;
-        w[static_cast<size_t>(i)] += o.silhouette_weight;
-        target_sum[static_cast<size_t>(i)] += o.silhouette_weight * t;
-        ++sil_corr;
-      }
-    }
-    // Uncovered mask pixels pull the nearest visible vertex (image distance), via a coarse grid of the
-    // projected visible vertices.
-    if (o.silhouette_weight > 0 && n_visible > 0) {
-      const int cell = 8;
-      const int gw = (k.width + cell - 1) / cell, gh = (k.height + cell - 1) / cell;
-      std::vector<std::vector<Index>> grid(static_cast<size_t>(gw * gh));
-      for (Index i = 0; i < n; ++i)
-        if (visible[static_cast<size_t>(i)]) {
-          const Vec2& q = proj[static_cast<size_t>(i)];
-          const int gx = std::clamp(static_cast<int>(q.x()) / cell, 0, gw - 1), gy = std::clamp(static_cast<int>(q.y()) / cell, 0, gh - 1);
-          grid[static_cast<size_t>(gy * gw + gx)].push_back(i);
-        }
-      // Only pixels clearly outside the rendered mesh (beyond silhouette_slack_px): the rasterisation of a
-      // correct shape differs from the observation by a pixel along the whole outline.
-      cv::Mat rendered_far;
-      cv::distanceTransform(img.mask == 0, rendered_far, cv::DIST_L2, 3);
-      for (int y = 0; y < mask.rows; y += o.uncovered_step_px)
-        for (int xpx = 0; xpx < mask.cols; xpx += o.uncovered_step_px) {
-          if (!mask.at<std::uint8_t>(y, xpx) || rendered_far.at<float>(y, xpx) <= o.silhouette_slack_px) continue;
-          const float zm = depth.at<float>(y, xpx);
-          if (!validDepth(zm)) continue;
-          const int gx = xpx / cell, gy = y / cell;
-          Index best = -1;
-          double best_d2 = std::numeric_limits<double>::infinity();
-          for (int ring = 0; ring <= 4 && best < 0; ++ring)  // grow the search until a vertex is found
-            for (int yy = std::max(0, gy - ring); yy <= std::min(gh - 1, gy + ring); ++yy)
-              for (int xx = std::max(0, gx - ring); xx <= std::min(gw - 1, gx + ring); ++xx)
-                for (Index i : grid[static_cast<size_t>(yy * gw + xx)]) {
-                  const double d2 = (proj[static_cast<size_t>(i)] - Vec2(xpx, y)).squaredNorm();
-                  if (d2 < best_d2) {
-                    best_d2 = d2;
-                    best = i;
-                  }
-                }
-          if (best < 0 || best == fixed_vertex) continue;
-          const Vec3 t = backProject(k, xpx, y, zm);
-          if ((t - x.segment<3>(3 * best)).norm() > 3 * o.max_correspondence_m) continue;
-          const double ws = o.silhouette_weight * o.uncovered_step_px * o.uncovered_step_px / 4.0;
-          w[static_cast<size_t>(best)] += ws;
-          target_sum[static_cast<size_t>(best)] += ws * t;
+    for (const PreparedView& pv : prepared) {
+      const DepthView& view = *pv.v;
+      const auto& k = view.intrinsics;
+      const cv::Mat& depth = view.depth;
+      const cv::Mat& mask = view.mask;
+      // A camera-frame target back into the common frame.
+      auto common = [&](const Vec3& t_camera) -> Vec3 { return view.rotation.transpose() * (t_camera - view.translation); };
+      auto addTarget = [&](Index i, double weight, const Vec3& t_camera) {
+        w[static_cast<size_t>(i)] += weight;
+        target_sum[static_cast<size_t>(i)] += weight * common(t_camera);
+      };
+      VecX xc(x.size());
+      for (Index i = 0; i < n; ++i) xc.segment<3>(3 * i) = view.rotation * x.segment<3>(3 * i) + view.translation;
+      // Visibility by z-buffer.
+      vision::ShadedRenderOptions rop;
+      rop.intrinsics = k;
+      rop.noise_sigma = 0;
+      rop.render_mask = true;
+      rop.render_depth = true;
+      const vision::ShadedImage img = vision::renderShaded(xc, triangles, rop);
+      std::vector<Vec2> proj(static_cast<size_t>(n), Vec2(-1, -1));
+      std::vector<char> visible(static_cast<size_t>(n), 0);
+      int view_visible = 0;
+      for (Index i = 0; i < n; ++i) {
+        const Vec3 p = xc.segment<3>(3 * i);
+        if (!(p.z() > 0.01)) continue;
+        const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
+        const int iu = static_cast<int>(std::lround(u)), iv = static_cast<int>(std::lround(v));
+        if (iu < 0 || iv < 0 || iu >= k.width || iv >= k.height) continue;
+        const float zr = img.depth.at<float>(iv, iu);
+        if (validDepth(zr) && p.z() > zr + o.visibility_slack_m) continue;  // hidden behind the mesh
+        visible[static_cast<size_t>(i)] = 1;
+        proj[static_cast<size_t>(i)] = Vec2(u, v);
+        ++view_visible;
+        if (i == fixed_vertex) continue;
+        if (mask.at<std::uint8_t>(iv, iu)) {
+          double zm = 0;
+          if (!sampleDepth(depth, mask, u, v, o.depth_discontinuity_m, &zm)) continue;
+          const Vec3 t = backProject(k, u, v, zm);
+          const double d = (t - p).norm();
+          if (d > o.max_correspondence_m) continue;
+          // Cauchy weight: a wrong layer or a stray pixel pulls little.
+          addTarget(i, 1.0 / (1.0 + (d / o.robust_scale_m) * (d / o.robust_scale_m)), t);
+          residual += d;
+          ++depth_corr;
+        } else if (o.silhouette_weight > 0 && pv.dist.at<float>(iv, iu) > o.silhouette_slack_px) {
+          const int lbl = pv.labels.at<int>(iv, iu);
+          if (lbl <= 0 || lbl >= static_cast<int>(pv.label_pixel.size())) continue;
+          const cv::Point q = pv.label_pixel[static_cast<size_t>(lbl)];
+          const float zm = depth.at<float>(q.y, q.x);
+          const double z = validDepth(zm) && std::abs(zm - p.z()) <= o.max_correspondence_m ? zm : p.z();
+          const Vec3 t = backProject(k, q.x, q.y, z);
+          if ((t - p).norm() > 3 * o.max_correspondence_m) continue;
+          addTarget(i, o.silhouette_weight, t);
           ++sil_corr;
         }
+      }
+      n_visible += view_visible;
+      // Uncovered mask pixels pull the nearest visible vertex (image distance), via a coarse grid of the
+      // projected visible vertices.
+      if (o.silhouette_weight > 0 && view_visible > 0) {
+        const int cell = 8;
+        const int gw = (k.width + cell - 1) / cell, gh = (k.height + cell - 1) / cell;
+        std::vector<std::vector<Index>> grid(static_cast<size_t>(gw * gh));
+        for (Index i = 0; i < n; ++i)
+          if (visible[static_cast<size_t>(i)]) {
+            const Vec2& q = proj[static_cast<size_t>(i)];
+            const int gx = std::clamp(static_cast<int>(q.x()) / cell, 0, gw - 1), gy = std::clamp(static_cast<int>(q.y()) / cell, 0, gh - 1);
+            grid[static_cast<size_t>(gy * gw + gx)].push_back(i);
+          }
+        // Only pixels clearly outside the rendered mesh (beyond silhouette_slack_px): the rasterisation of a
+        // correct shape differs from the observation by a pixel along the whole outline.
+        cv::Mat rendered_far;
+        cv::distanceTransform(img.mask == 0, rendered_far, cv::DIST_L2, 3);
+        for (int y = 0; y < mask.rows; y += o.uncovered_step_px)
+          for (int xpx = 0; xpx < mask.cols; xpx += o.uncovered_step_px) {
+            if (!mask.at<std::uint8_t>(y, xpx) || rendered_far.at<float>(y, xpx) <= o.silhouette_slack_px) continue;
+            const float zm = depth.at<float>(y, xpx);
+            if (!validDepth(zm)) continue;
+            const int gx = xpx / cell, gy = y / cell;
+            Index best = -1;
+            double best_d2 = std::numeric_limits<double>::infinity();
+            for (int ring = 0; ring <= 4 && best < 0; ++ring)  // grow the search until a vertex is found
+              for (int yy = std::max(0, gy - ring); yy <= std::min(gh - 1, gy + ring); ++yy)
+                for (int xx = std::max(0, gx - ring); xx <= std::min(gw - 1, gx + ring); ++xx)
+                  for (Index i : grid[static_cast<size_t>(yy * gw + xx)]) {
+                    const double d2 = (proj[static_cast<size_t>(i)] - Vec2(xpx, y)).squaredNorm();
+                    if (d2 < best_d2) {
+                      best_d2 = d2;
+                      best = i;
+                    }
+                  }
+            if (best < 0 || best == fixed_vertex) continue;
+            const Vec3 t = backProject(k, xpx, y, zm);
+            if ((t - xc.segment<3>(3 * best)).norm() > 3 * o.max_correspondence_m) continue;
+            addTarget(best, o.silhouette_weight * o.uncovered_step_px * o.uncovered_step_px / 4.0, t);
+            ++sil_corr;
+          }
+      }
     }
     if (it == 0) {
       rep.mean_depth_residual_before_m = depth_corr > 0 ? residual / depth_corr : -1;

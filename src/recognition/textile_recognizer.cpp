@@ -853,17 +853,29 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   try {
     const VecX x = w.reflected ? reflectAcrossView(sp->positions, sp->held, w.reflection_view_deg) : sp->positions;
     const double rot0 = rotationFor(w.view_angle_deg, 0);
+    // The images with depth (the first one's hold frame is the common frame of the fit).
+    std::vector<DepthView> views;
     if (o.shape_fit.enabled && !imgs[0].depth_m.empty()) {
-      // Deform the matched shape onto the first image's measured surface, then read the poses from it
-      // (in H already: rotation 0 about the held particle, which the fit keeps at the hold point).
+      for (std::size_t i = 0; i < n; ++i) {
+        if (imgs[i].depth_m.empty()) continue;
+        // Image i sees the shape turned by rotationFor(view, i) about the hold axis, the common frame by
+        // rot0: a point p of the common frame is R_i Rz(rot_i - rot0) p + hold_i in camera i.
+        DepthView v;
+        v.depth = imgs[i].depth_m;
+        v.mask = imgs[i].mask;
+        v.intrinsics = imgs[i].g.intrinsics;
+        v.rotation = imgs[i].g.rotation_camera_hold * rotationZ(rotationFor(w.view_angle_deg, i) - rot0);
+        v.translation = imgs[i].g.hold_camera;
+        views.push_back(v);
+        if (!o.shape_fit.fuse_views) break;
+      }
+    }
+    if (!views.empty()) {
+      // Deform the matched shape onto the measured surfaces, then read the poses from it (in H already:
+      // rotation 0 about the held particle, which the fit keeps at the hold point).
       const HoldGeometry& g0 = imgs[0].g;
       const VecX ph = placeInHoldFrame(x, sp->held, rot0);
-      VecX pc(ph.size());
-      for (Eigen::Index v = 0; v < ph.size() / 3; ++v) pc.segment<3>(3 * v) = g0.holdToCamera(ph.segment<3>(3 * v));
-      const VecX fitted = fitShapeToDepth(pc, sp->triangles, sp->held, imgs[0].depth_m, imgs[0].mask, g0.intrinsics,
-                                          o.shape_fit, &res.shape_fit);
-      VecX xh(fitted.size());
-      for (Eigen::Index v = 0; v < fitted.size() / 3; ++v) xh.segment<3>(3 * v) = g0.cameraToHold(fitted.segment<3>(3 * v));
+      const VecX xh = fitShapeToDepthViews(ph, sp->triangles, sp->held, views, o.shape_fit, &res.shape_fit);
       res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, xh, sp->held, 0.0, g0, o.grasp);
     } else {
       res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);

@@ -2,9 +2,13 @@
 // front of a VGA camera is the truth; its rendered depth and mask are the measurement.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <vector>
+
+#include <Eigen/Geometry>
 
 #include "recognition_test_support.h"
 #include "textile_handling/recognition/shape_fitting.h"
@@ -124,4 +128,51 @@ TEST(ShapeFitting, BadInputIsRejected) {
   ShapeFitOptions o;
   o.iterations = 0;
   EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), std::invalid_argument);
+}
+
+TEST(ShapeFitting, SecondViewFromBehindFitsInTheCommonFrame) {
+  // Camera 1 is the optical frame of makeSheet; camera 2 looks at the sheet from behind (half turn about
+  // the vertical line x = 0, z = 1.2), so the common frame is camera 1's. Each view alone must pull the
+  // deformed sheet towards the truth (a wrong frame mapping would push it away), and both together at
+  // least as well as the better one.
+  const Sheet truth = makeSheet(0.0), guess = makeSheet(1.0);
+  const Mat3 r2 = Eigen::AngleAxis<Real>(M_PI, Vec3::UnitY()).toRotationMatrix();
+  const Vec3 c(0, 0, 1.2);
+  const Vec3 t2 = c - r2 * c;
+  Sheet truth2 = truth;
+  for (Eigen::Index i = 0; i < truth.x.size() / 3; ++i) truth2.x.segment<3>(3 * i) = r2 * truth.x.segment<3>(3 * i) + t2;
+  const vision::ShadedImage m1 = measure(truth), m2 = measure(truth2);
+  DepthView v1, v2;
+  v1.depth = m1.depth;
+  v1.mask = m1.mask;
+  v1.intrinsics = vga();
+  v2.depth = m2.depth;
+  v2.mask = m2.mask;
+  v2.intrinsics = vga();
+  v2.rotation = r2;
+  v2.translation = t2;
+  const double before = meanError(guess.x, truth.x);
+  double after[3];
+  const std::vector<std::vector<DepthView>> sets = {{v1}, {v2}, {v1, v2}};
+  for (int k = 0; k < 3; ++k) {
+    ShapeFitReport rep;
+    const VecX f = fitShapeToDepthViews(guess.x, guess.triangles, guess.top, sets[static_cast<size_t>(k)], {}, &rep);
+    ASSERT_TRUE(rep.applied) << k << ": " << rep.note;
+    after[k] = meanError(f, truth.x);
+    EXPECT_LT((f.segment<3>(3 * guess.top) - guess.x.segment<3>(3 * guess.top)).norm(), 1e-6);
+  }
+  std::printf("mean vertex error %.1f mm -> front %.1f, back %.1f, both %.1f mm\n", 1e3 * before, 1e3 * after[0],
+              1e3 * after[1], 1e3 * after[2]);
+  EXPECT_LT(after[0], 0.5 * before);
+  EXPECT_LT(after[1], 0.5 * before);
+  EXPECT_LE(after[2], 1.1 * std::min(after[0], after[1]));
+  // The one-view entry point is the one-view case of the general one.
+  const VecX a = fitShapeToDepth(guess.x, guess.triangles, guess.top, m1.depth, m1.mask, vga());
+  const VecX b = fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {v1});
+  EXPECT_EQ((a - b).norm(), 0.0);
+  // A view with a rotation that is not a rotation is refused.
+  DepthView bad = v2;
+  bad.rotation *= 2.0;
+  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {bad}), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {}), std::invalid_argument);
 }

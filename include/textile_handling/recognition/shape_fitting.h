@@ -23,6 +23,12 @@
 //     one sparse symmetric positive definite system (the same matrix for x, y and z), Eigen LDLT.
 // Occluded vertices follow their neighbours through the edge term. The result is a shape in the camera
 // frame; the caller maps it into its frame of choice.
+//
+// Several views (fitShapeToDepthViews): the shape lives in a common frame and each view maps it into
+// its camera (rotation, translation); the correspondences of all views, mapped back into the common
+// frame, enter the same least-squares problem (the data term |X_i - t_i|^2 does not depend on the
+// frame). A part hidden in one view and seen in another is then fitted too: the cell turns the gripper
+// and fuses two images (docs/recognition.md).
 #pragma once
 
 #include <string>
@@ -38,6 +44,9 @@ namespace recognition {
 
 struct ShapeFitOptions {
   bool enabled = true;
+  /// With several images (fusion), fit to the depth of every image that has it (true) or of the first
+  /// only (false).
+  bool fuse_views = true;
   int iterations = 10;
   /// Weight of the edge-vector term relative to one data correspondence (weight 1).
   double edge_weight = 4.0;
@@ -70,6 +79,23 @@ struct ShapeFitReport {
   bool applied = false;            ///< false: too few data (the shape is returned unchanged)
   std::string note;
 };
+
+/// One registered depth view of the shape for fitShapeToDepthViews: camera point = rotation * p + translation
+/// for a point p of the common frame.
+struct DepthView {
+  cv::Mat depth;                    ///< CV_32FC1 [m], NaN or <= 0 = none
+  cv::Mat mask;                     ///< CV_8UC1, != 0 = textile
+  vision::PinholeIntrinsics intrinsics;
+  Mat3 rotation = Mat3::Identity();
+  Vec3 translation = Vec3::Zero();
+};
+
+/// Fits `positions` (3 per vertex, the common frame [m]) to every view at once (see above); otherwise as
+/// fitShapeToDepth, with the correspondence counts summed over the views. Throws std::invalid_argument for
+/// inconsistent input (sizes, types, bad indices, no view, a non-orthonormal rotation).
+VecX fitShapeToDepthViews(const VecX& positions, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
+                          const std::vector<DepthView>& views, const ShapeFitOptions& options = {},
+                          ShapeFitReport* report = nullptr);
 
 /// Fits `positions_camera` (3 per vertex, camera optical frame [m]; triangles as for the renderers) to
 /// a registered depth image (CV_32FC1 [m], NaN or <= 0 = none) inside `mask` (CV_8UC1, != 0 = textile;
