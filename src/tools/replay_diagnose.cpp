@@ -13,11 +13,13 @@
 #include <cv_bridge/cv_bridge.h>
 #include <yaml-cpp/yaml.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <map>
 #include <string>
 
+#include "textile_handling/db/textile_symmetry.h"
 #include "textile_handling/recognition/textile_recognizer.h"
 
 using namespace textile_handling;
@@ -44,7 +46,11 @@ int main(int argc, char** argv) {
     gripper_pts[kv.first.as<std::string>()] =
         Vec3(kv.second[0].as<double>(), kv.second[1].as<double>(), kv.second[2].as<double>());
   const Vec2 hold(truth["hold_xy"][0].as<double>(), truth["hold_xy"][1].as<double>());
-  const Vec2 centre(truth["bounding_box_centre"][0].as<double>(), truth["bounding_box_centre"][1].as<double>());
+  // The bag's textile is mirror-symmetric about its bounding-box centre (the towel).
+  db::TextileSymmetry symmetry;
+  symmetry.mirror_x = symmetry.mirror_y = true;
+  symmetry.cx = truth["bounding_box_centre"][0].as<double>();
+  symmetry.cy = truth["bounding_box_centre"][1].as<double>();
 
   recognition::TextileRecognizer rec(argv[3], o);
   // Messages of one stamp (tf, camera_info, colour, depth) are gathered first: rosbag orders messages of
@@ -93,24 +99,21 @@ int main(int argc, char** argv) {
                   c.score, c.coarse_score, (int)c.refined);
     // Relabel by a mirror that maps the true hold onto the result's (as test_replay_recognition): of the
     // mirrors equally close (a hold point on a symmetry axis leaves the names open), the best fitting.
-    double best_d = 1e9;
-    for (int mi = 0; mi < 4; ++mi) {
-      const Vec2 h((mi & 1) ? 2 * centre.x() - hold.x() : hold.x(), (mi & 2) ? 2 * centre.y() - hold.y() : hold.y());
-      best_d = std::min(best_d, (h - r.hold_point).norm());
-    }
+    double hold_distance[4];
+    for (int mi = 0; mi < 4; ++mi)
+      hold_distance[mi] = (symmetry.apply(static_cast<db::MirrorKind>(mi), hold) - r.hold_point).norm();
+    const double best_d = *std::min_element(hold_distance, hold_distance + 4);
     const Eigen::Isometry3d gripper_camera = camera_gripper.inverse();
     double best_worst = 1e9;
     std::string best_lines;
     for (int mi = 0; mi < 4; ++mi) {
-      const Vec2 h((mi & 1) ? 2 * centre.x() - hold.x() : hold.x(), (mi & 2) ? 2 * centre.y() - hold.y() : hold.y());
-      if ((h - r.hold_point).norm() > best_d + 1e-6) continue;
+      if (hold_distance[mi] > best_d + 1e-6) continue;
       double worst = 0;
       std::string lines;
       for (const auto& gp : r.grasp_poses) {
         const auto it = textile_pts.find(gp.name);
         if (it == textile_pts.end()) continue;
-        const Vec2 q((mi & 1) ? 2 * centre.x() - it->second.x() : it->second.x(),
-                     (mi & 2) ? 2 * centre.y() - it->second.y() : it->second.y());
+        const Vec2 q = symmetry.apply(static_cast<db::MirrorKind>(mi), it->second);
         std::string truth_name;
         for (const auto& kv : textile_pts)
           if ((kv.second - q).norm() < 1e-6) truth_name = kv.first;
