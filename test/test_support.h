@@ -42,9 +42,9 @@ class ThreadScope {
 /// and shared-memory files are removed before use and at the end of the scope.
 class TempDatabase {
  public:
-  explicit TempDatabase(const std::string& name, const std::string& prefix = "th_test") {
+  explicit TempDatabase(const std::string& name) {
     path_ = (std::filesystem::temp_directory_path() /
-             (prefix + "_" + std::to_string(::getpid()) + "_" + name + ".sqlite"))
+             ("th_test_" + std::to_string(::getpid()) + "_" + name + ".sqlite"))
                 .string();
     remove();
   }

@@ -21,10 +21,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-class TempDatabase : public test_support::TempDatabase {
- public:
-  explicit TempDatabase(const std::string& name) : test_support::TempDatabase(name, "th_db_builder") {}
-};
+using test_support::TempDatabase;
 
 // 30 x 30 cm square, d = 3 cm, lattice 10 cm: quadrant x, y in {0, .10, .15} -> 9 simulated, 25 in all.
 DrapeBuildConfig smallSquare() {

@@ -27,10 +27,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-class TempDatabase : public test_support::TempDatabase {
- public:
-  explicit TempDatabase(const std::string& name) : test_support::TempDatabase(name, "th_db_test") {}
-};
+using test_support::TempDatabase;
 
 // A towel at d = 4 cm hanging straight down from the middle of its top edge, with a gentle wave.
 VecX hangingTowel(Index* held) {
