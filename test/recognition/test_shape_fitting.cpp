@@ -16,7 +16,6 @@
 
 using namespace textile_handling;
 using namespace textile_handling::recognition;
-using textile_handling::test_support::throwsCode;
 using textile_handling::test_support::vga;
 
 namespace {
