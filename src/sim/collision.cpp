@@ -393,9 +393,9 @@ bool SelfCollisionPass::edgeCrosses(Index e, Index t, const VecX& x) const {
 namespace {
 // Merges per-thread hit lists into one sorted, duplicate-free list (independent of thread count).
 template <class HitT>
-void mergeSorted(std::vector<std::vector<HitT>>& local, std::vector<HitT>& out) {
+void mergeSorted(std::vector<ThreadList<HitT>>& local, std::vector<HitT>& out) {
   out.clear();
-  for (auto& l : local) out.insert(out.end(), l.begin(), l.end());
+  for (auto& l : local) out.insert(out.end(), l.items.begin(), l.items.end());
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
 }
@@ -428,10 +428,10 @@ void SelfCollisionPass::detectEdges(Index num_edges_considered, const VecX& x, s
   // per orphan edge; each candidate (edge, triangle) pair then gets a box test and the exact test.
   const Index T = tris_.numTriangles();
   const Index m = T + static_cast<Index>(orphan_edges_.size());
-  std::vector<std::vector<Hit>> local(static_cast<size_t>(threadCount()));
+  std::vector<ThreadList<Hit>> local(static_cast<size_t>(threadCount()));
 #pragma omp parallel if (m >= kParallelMin)
   {
-    auto& out = local[static_cast<size_t>(threadId())];
+    auto& out = local[static_cast<size_t>(threadId())].items;
     geom::SpatialHash::Query query(hash_);
     auto test = [&](Index e, Index t2) {
       const auto& ed = tris_.edges[static_cast<size_t>(e)];
@@ -484,10 +484,10 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   group_hash_.build(group_boxes_, options_.cell_size_factor * tris_.spacing);
   auto& local = local_pairs_;
   local.resize(static_cast<size_t>(threadCount()));
-  for (auto& l : local) l.clear();
+  for (auto& l : local) l.items.clear();
 #pragma omp parallel if (G >= kParallelMin)
   {
-    auto& out = local[static_cast<size_t>(threadId())];
+    auto& out = local[static_cast<size_t>(threadId())].items;
     geom::SpatialHash::Query query(group_hash_);
     auto pair = [&](Index a, Index b) {  // (triangles sharing a vertex: the static lists)
       if (overlapInflated(boxes_[static_cast<size_t>(a)], boxes_[static_cast<size_t>(b)], inflate) &&
@@ -510,10 +510,10 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
     }
   }
   size_t total = 0;
-  for (const auto& l : local) total += l.size();
+  for (const auto& l : local) total += l.items.size();
   cand_.clear();
   cand_.reserve(total);
-  for (const auto& l : local) cand_.insert(cand_.end(), l.begin(), l.end());
+  for (const auto& l : local) cand_.insert(cand_.end(), l.items.begin(), l.items.end());
 }
 
 void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
@@ -522,10 +522,10 @@ void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const V
   // belong to no triangle against the hash.
   const Index nc = static_cast<Index>(cand_.size()), na = static_cast<Index>(adj_cross_.size());
   const Index m = nc + na + static_cast<Index>(orphan_edges_.size());
-  std::vector<std::vector<Hit>> local(static_cast<size_t>(threadCount()));
+  std::vector<ThreadList<Hit>> local(static_cast<size_t>(threadCount()));
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
-    auto& out = local[static_cast<size_t>(threadId())];
+    auto& out = local[static_cast<size_t>(threadId())].items;
     geom::SpatialHash::Query query(hash_);
     auto test = [&](Index e, Index t2) {
       if (e >= num_edges_considered) return;
@@ -605,10 +605,10 @@ void SelfCollisionPass::detectIncremental(const std::vector<Index>& moved, Index
   auto triDirty = [&](Index t) { return tri_mark_[static_cast<size_t>(t)] == ep; };
   auto edgeDirty = [&](Index e) { return e < num_edges_considered && edge_mark_[static_cast<size_t>(e)] == ep; };
   const Index m = static_cast<Index>(work.size()) + static_cast<Index>(orphan_edges_.size());
-  std::vector<std::vector<Hit>> local(static_cast<size_t>(threadCount()));
+  std::vector<ThreadList<Hit>> local(static_cast<size_t>(threadCount()));
 #pragma omp parallel if (m >= kParallelMin)
   {
-    auto& out = local[static_cast<size_t>(threadId())];
+    auto& out = local[static_cast<size_t>(threadId())].items;
     geom::SpatialHash::Query query(hash_);
     auto test = [&](Index e, Index t2) {
       if (e >= num_edges_considered) return;
@@ -861,12 +861,12 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   auto& lee = local_ee_;
   lvt.resize(static_cast<size_t>(threadCount()));
   lee.resize(static_cast<size_t>(threadCount()));
-  for (auto& l : lvt) l.clear();
-  for (auto& l : lee) l.clear();
+  for (auto& l : lvt) l.items.clear();
+  for (auto& l : lee) l.items.clear();
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
-    auto& ovt = lvt[static_cast<size_t>(threadId())];
-    auto& oee = lee[static_cast<size_t>(threadId())];
+    auto& ovt = lvt[static_cast<size_t>(threadId())].items;
+    auto& oee = lee[static_cast<size_t>(threadId())].items;
     // Vertices owned by triangle k against triangle t2.
     auto vt = [&](Index k, Index t2) {
       const auto& c = tris_.triangles[static_cast<size_t>(t2)];
@@ -937,8 +937,8 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   prox_cache_vt_.clear();
   prox_cache_ee_.clear();
   // (The order is the thread's; detectProximity sorts what it finds, so results do not depend on it.)
-  for (auto& l : lvt) prox_cache_vt_.insert(prox_cache_vt_.end(), l.begin(), l.end());
-  for (auto& l : lee) prox_cache_ee_.insert(prox_cache_ee_.end(), l.begin(), l.end());
+  for (auto& l : lvt) prox_cache_vt_.insert(prox_cache_vt_.end(), l.items.begin(), l.items.end());
+  for (auto& l : lee) prox_cache_ee_.insert(prox_cache_ee_.end(), l.items.begin(), l.items.end());
 }
 
 void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const {
@@ -1016,10 +1016,12 @@ void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::
   };
   const Index nvt = static_cast<Index>(prox_cache_vt_.size()), nee = static_cast<Index>(prox_cache_ee_.size());
   const Index m = nvt + nee;
-  std::vector<std::vector<ProxPair>> local(static_cast<size_t>(threadCount()));
-#pragma omp parallel if (m >= 4 * kParallelMin)
+  auto& local = local_prox_;
+  local.resize(static_cast<size_t>(threadCount()));
+  for (auto& l : local) l.items.clear();
+#pragma omp parallel if (m >= kParallelMin)
   {
-    auto& out = local[static_cast<size_t>(threadId())];
+    auto& out = local[static_cast<size_t>(threadId())].items;
 #pragma omp for schedule(static)
     for (Index k = 0; k < m; ++k) {
       if (k < nvt) {
@@ -1030,10 +1032,16 @@ void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::
         edgeEdge(c.first, c.second, out);
       }
     }
+    // Each thread sorts what it found; the sorted lists are merged below (pairs are unique, so
+    // the merged order is the sorted order whatever the thread count).
+    std::sort(out.begin(), out.end());
   }
   pairs.clear();
-  for (auto& l : local) pairs.insert(pairs.end(), l.begin(), l.end());
-  std::sort(pairs.begin(), pairs.end());
+  for (auto& l : local) {
+    const size_t mid = pairs.size();
+    pairs.insert(pairs.end(), l.items.begin(), l.items.end());
+    std::inplace_merge(pairs.begin(), pairs.begin() + static_cast<std::ptrdiff_t>(mid), pairs.end());
+  }
 }
 
 Real SelfCollisionPass::estimateStep(const VecX& x_old, const VecX& x_pred, const VecX& v) const {
@@ -1563,10 +1571,10 @@ long SelfCollisionPass::applyV1(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
     buildHash(x_old, x, options_.d_min);
     st.broad_ms += msSince(t0);
     t0 = Clock::now();
-    std::vector<std::vector<Hit>> local(static_cast<size_t>(threadCount()));
+    std::vector<ThreadList<Hit>> local(static_cast<size_t>(threadCount()));
 #pragma omp parallel if (n >= kParallelMin)
     {
-      auto& out = local[static_cast<size_t>(threadId())];
+      auto& out = local[static_cast<size_t>(threadId())].items;
       geom::SpatialHash::Query query(hash_);
 #pragma omp for schedule(dynamic, 256)
       for (Index p = 0; p < n; ++p) {

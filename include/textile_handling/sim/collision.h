@@ -74,6 +74,14 @@ struct ClothTriangles {
   static ClothTriangles fromTopology(const ParticleTopology& topo);
 };
 
+/// A list that one thread appends to, on cache lines of its own: the lists of several threads
+/// sit side by side in a std::vector, and without the alignment the vector headers that every
+/// append writes would share a cache line (false sharing).
+template <class T>
+struct alignas(64) ThreadList {
+  std::vector<T> items;
+};
+
 /// Pinned-particle mask (1 = pinned) of size n from a PinnedNodes list.
 std::vector<char> pinnedMask(Index num_particles, const PinnedNodes& pins);
 
@@ -390,7 +398,8 @@ class SelfCollisionPass : public PostStepPass {
   Real cand_radius_ = 0;
   bool cand_valid_ = false;
   // Scratch kept between calls (no allocation per step): per-thread pair lists, boxes at x_old.
-  std::vector<std::vector<std::pair<Index, Index>>> local_pairs_, local_vt_, local_ee_;
+  std::vector<ThreadList<std::pair<Index, Index>>> local_pairs_, local_vt_, local_ee_;
+  mutable std::vector<ThreadList<ProxPair>> local_prox_;  // scratch of detectProximity
   std::vector<geom::Aabb> prox_tbox_, prox_ebox_;
   bool hash_current_ = false;           // hash_ holds this apply()'s boxes
   std::unordered_map<std::uint64_t, Vec3> contact_memory_;
