@@ -244,15 +244,26 @@ ForceReport ParticleClothModel::computeForces(const VecX& x, const VecX& v, VecX
 }
 
 Real ParticleClothModel::potentialEnergy(const VecX& x) const {
+  // Parallel over the stencils of one colour at a time, as computeForces (the stencils also add
+  // forces, into a scratch vector); summed in particle order, so the result does not depend on the
+  // thread count. The simulation evaluates it after every step with a collision rollback.
   const Index n = numNodes();
   VecX scratch = VecX::Zero(3 * n);
-  std::vector<Real> per(n, 0.0);
-  for (Index r = 0; r < n; ++r) {
-    addStencil(stencils_[r], x, scratch, nullptr, &per[r]);
-    if (options_.gravity) per[r] += mass_[3 * r] * kGravity * x[3 * r + 2];
+  std::vector<Real> per(static_cast<size_t>(n), 0.0);
+  for (const auto& group : colour_) {
+    const Index m = static_cast<Index>(group.size());
+#pragma omp parallel for schedule(static)
+    for (Index k = 0; k < m; ++k) {
+      const Index r = group[static_cast<size_t>(k)];
+      addStencil(stencils_[static_cast<size_t>(r)], x, scratch, nullptr, &per[static_cast<size_t>(r)]);
+    }
   }
   Real e = 0;
-  for (Real p : per) e += p;
+  for (Index r = 0; r < n; ++r) {
+    Real p = per[static_cast<size_t>(r)];
+    if (options_.gravity) p += mass_[3 * r] * kGravity * x[3 * r + 2];
+    e += p;
+  }
   return e;
 }
 
