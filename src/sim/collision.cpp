@@ -285,6 +285,39 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
       else groups_[static_cast<size_t>(ins.first->second)][1] = t;
     }
   }
+  // Neighbouring cells (cells whose triangles share a vertex) always have overlapping boxes; the
+  // broad phase skips them, and their triangle pairs that share no vertex are listed once
+  // (near_pairs_, box-tested at each build).
+  {
+    std::vector<Index> group_of(tris_.triangles.size(), -1);
+    for (size_t g = 0; g < groups_.size(); ++g)
+      for (Index t : groups_[g])
+        if (t >= 0) group_of[static_cast<size_t>(t)] = static_cast<Index>(g);
+    neighbour_group_start_.assign(groups_.size() + 1, 0);
+    neighbour_group_list_.clear();
+    std::vector<Index> nb;
+    for (size_t g = 0; g < groups_.size(); ++g) {
+      nb.clear();
+      for (Index t : groups_[g]) {
+        if (t < 0) continue;
+        for (Index v : tris_.triangles[static_cast<size_t>(t)])
+          for (Index k = tris_.vertex_triangle_start[static_cast<size_t>(v)]; k < tris_.vertex_triangle_start[static_cast<size_t>(v) + 1]; ++k) {
+            const Index g2 = group_of[static_cast<size_t>(tris_.vertex_triangle_list[static_cast<size_t>(k)])];
+            if (g2 != static_cast<Index>(g)) nb.push_back(g2);
+          }
+      }
+      std::sort(nb.begin(), nb.end());
+      nb.erase(std::unique(nb.begin(), nb.end()), nb.end());
+      neighbour_group_list_.insert(neighbour_group_list_.end(), nb.begin(), nb.end());
+      neighbour_group_start_[g + 1] = static_cast<Index>(neighbour_group_list_.size());
+      for (Index g2 : nb) {
+        if (g2 < static_cast<Index>(g)) continue;
+        for (Index a : groups_[g])
+          for (Index b : groups_[static_cast<size_t>(g2)])
+            if (a >= 0 && b >= 0 && !tris_.trianglesShareVertex(a, b)) near_pairs_.emplace_back(std::min(a, b), std::max(a, b));
+      }
+    }
+  }
   // Triangles that share a vertex are always candidates of each other (their boxes touch): the
   // feature pairs between them that can meet are fixed by the topology and listed once.
   for (Index a = 0; a < tris_.numTriangles(); ++a) {
@@ -485,28 +518,34 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   auto& local = local_pairs_;
   local.resize(static_cast<size_t>(threadCount()));
   for (auto& l : local) l.items.clear();
+  const Index nn = static_cast<Index>(near_pairs_.size());
 #pragma omp parallel if (G >= kParallelMin)
   {
     auto& out = local[static_cast<size_t>(threadId())].items;
     geom::SpatialHash::Query query(group_hash_);
-    auto pair = [&](Index a, Index b) {  // (triangles sharing a vertex: the static lists)
-      if (overlapInflated(boxes_[static_cast<size_t>(a)], boxes_[static_cast<size_t>(b)], inflate) &&
-          !tris_.trianglesShareVertex(a, b))
-        out.emplace_back(std::min(a, b), std::max(a, b));
-    };
-#pragma omp for schedule(dynamic, 256)
+#pragma omp for schedule(dynamic, 256) nowait
     for (Index g = 0; g < G; ++g) {
       const auto& mg = groups_[static_cast<size_t>(g)];
-      if (mg[1] >= 0) pair(mg[0], mg[1]);
+      const Index* nb = neighbour_group_list_.data() + neighbour_group_start_[static_cast<size_t>(g)];
+      const Index* nb_end = neighbour_group_list_.data() + neighbour_group_start_[static_cast<size_t>(g) + 1];
       geom::Aabb q = group_boxes_[static_cast<size_t>(g)];
       q.inflate(-inflate);
       query.forEachOverlapAbove(q, static_cast<int>(g), [&](int g2) {
+        if (std::binary_search(nb, nb_end, static_cast<Index>(g2))) return;  // a neighbouring cell: near_pairs_
+        // Cells that are not neighbours share no vertex, nor do their triangles.
         const auto& m2 = groups_[static_cast<size_t>(g2)];
         for (Index a : mg)
           if (a >= 0)
             for (Index b : m2)
-              if (b >= 0) pair(a, b);
+              if (b >= 0 && overlapInflated(boxes_[static_cast<size_t>(a)], boxes_[static_cast<size_t>(b)], inflate))
+                out.emplace_back(std::min(a, b), std::max(a, b));
       });
+    }
+#pragma omp for schedule(static)
+    for (Index k = 0; k < nn; ++k) {
+      const auto& pr = near_pairs_[static_cast<size_t>(k)];
+      if (overlapInflated(boxes_[static_cast<size_t>(pr.first)], boxes_[static_cast<size_t>(pr.second)], inflate))
+        out.push_back(pr);
     }
   }
   size_t total = 0;

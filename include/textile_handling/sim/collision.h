@@ -367,6 +367,10 @@ class SelfCollisionPass : public PostStepPass {
   std::vector<geom::Aabb> edge_boxes_;  // swept edge boxes of the current apply()
   Real query_inflate_ = 0;              // how far the hash's stored boxes may be stale
   std::vector<std::array<Index, 2>> groups_;  // broad-phase cells: 1 or 2 triangles (-1: none)
+  // Neighbouring cells of each cell (cells with a common vertex; CSR, ascending), and the triangle
+  // pairs of neighbouring cells that share no vertex (each once, a < b).
+  std::vector<Index> neighbour_group_start_, neighbour_group_list_;
+  std::vector<std::pair<Index, Index>> near_pairs_;
   std::vector<geom::Aabb> group_boxes_;
   geom::SpatialHash group_hash_;
   std::vector<std::pair<Index, Index>> cand_;  // triangle pairs with overlapping stored boxes (a < b)
