@@ -243,21 +243,57 @@ ForceReport ParticleClothModel::computeForces(const VecX& x, const VecX& v, VecX
   return ForceReport{degenerate};
 }
 
-Real ParticleClothModel::potentialEnergy(const VecX& x) const {
-  // Parallel over the stencils of one colour at a time, as computeForces (the stencils also add
-  // forces, into a scratch vector); summed in particle order, so the result does not depend on the
-  // thread count. The simulation evaluates it after every step with a collision rollback.
-  const Index n = numNodes();
-  VecX scratch = VecX::Zero(3 * n);
-  std::vector<Real> per(static_cast<size_t>(n), 0.0);
-  for (const auto& group : colour_) {
-    const Index m = static_cast<Index>(group.size());
-#pragma omp parallel for schedule(static)
-    for (Index k = 0; k < m; ++k) {
-      const Index r = group[static_cast<size_t>(k)];
-      addStencil(stencils_[static_cast<size_t>(r)], x, scratch, nullptr, &per[static_cast<size_t>(r)]);
+Real ParticleClothModel::stencilEnergy(const Stencil& st, const VecX& x) const {
+  // The energy terms of addStencil in the same order, without their derivatives; a term whose
+  // geometry is degenerate (or whose energy is not finite) is left out, as there.
+  const Index c = st.node[0];
+  const Vec3 p0 = node3(x, c);
+  Real e = 0;
+  for (int j = 1; j <= 2; ++j) {
+    const Index q = st.node[j];
+    if (q < 0) continue;
+    TensionDerivatives t;
+    if (!tensionTerm(p0, node3(x, q), topo_.spacing, c0_ * st.edge_width[j - 1], false, false, &t)) continue;
+    e += t.energy;
+  }
+  auto angle = [&](int a, int b, AngleKind kind, int dir) {
+    AngleGeometry geo;
+    if (!angleGeometry(p0, node3(x, st.node[a]), node3(x, st.node[b]), &geo)) return;
+    const Real theta = kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
+    Real en;
+    if (kind == AngleKind::kShear) {
+      const Real w = 0.25 * topo_.spacing * topo_.spacing;
+      const Real t = std::abs(theta);
+      en = w * 0.5 * (material_.shearEnergyDensitySI(0, t) + material_.shearEnergyDensitySI(1, t));
+    } else {
+      const Real d = topo_.spacing;
+      en = d * d * material_.bendEnergyDensitySI(dir, std::abs(theta) / d);
+      en *= st.bend_width[dir];
+    }
+    if (std::isfinite(en)) e += en;
+  };
+  if (options_.shear) {
+    for (int j = 1; j <= 4; ++j) {
+      const int k = j % 4 + 1;
+      if (st.node[j] >= 0 && st.node[k] >= 0) angle(j, k, AngleKind::kShear, 0);
     }
   }
+  if (options_.bending) {
+    for (int j = 1; j <= 2; ++j) {
+      if (st.node[j] >= 0 && st.node[j + 2] >= 0) angle(j, j + 2, AngleKind::kBending, j - 1);
+    }
+  }
+  return e;
+}
+
+Real ParticleClothModel::potentialEnergy(const VecX& x) const {
+  // Energies only (stencilEnergy), in parallel; summed in particle order, so the result does not
+  // depend on the thread count. The simulation evaluates it after every step with a collision
+  // rollback, to re-base its energy check.
+  const Index n = numNodes();
+  std::vector<Real> per(static_cast<size_t>(n), 0.0);
+#pragma omp parallel for schedule(static)
+  for (Index r = 0; r < n; ++r) per[static_cast<size_t>(r)] = stencilEnergy(stencils_[static_cast<size_t>(r)], x);
   Real e = 0;
   for (Index r = 0; r < n; ++r) {
     Real p = per[static_cast<size_t>(r)];

@@ -92,6 +92,8 @@ class ParticleClothModel : public ClothModel {
   };
   // Adds the terms of one stencil; returns the number of degenerate terms.
   Index addStencil(const Stencil& st, const VecX& x, VecX& f, BlockSparseMatrix* K, Real* energy) const;
+  // The stencil's energy alone (the terms of addStencil, same order, no derivatives).
+  Real stencilEnergy(const Stencil& st, const VecX& x) const;
 
   ParticleTopology topo_;
   Material material_;
