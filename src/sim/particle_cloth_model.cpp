@@ -137,6 +137,23 @@ AngleProfile ParticleClothModel::bendProfile(int dir, Real theta) const {
   return p;
 }
 
+template <class F>
+void ParticleClothModel::forEachAngle(const Stencil& st, F&& f) const {
+  // The stencil's angle terms in a fixed order: the four shear angles between consecutive arms,
+  // then the two bending hinges (left-right, up-down).
+  if (options_.shear) {
+    for (int j = 1; j <= 4; ++j) {
+      const int k = j % 4 + 1;
+      if (st.node[j] >= 0 && st.node[k] >= 0) f(j, k, AngleKind::kShear, 0);
+    }
+  }
+  if (options_.bending) {
+    for (int j = 1; j <= 2; ++j) {
+      if (st.node[j] >= 0 && st.node[j + 2] >= 0) f(j, j + 2, AngleKind::kBending, j - 1);
+    }
+  }
+}
+
 Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, BlockSparseMatrix* K,
                                      Real* energy) const {
   const bool hess = K != nullptr;
@@ -195,17 +212,7 @@ Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, 
         for (int w = 0; w < 3; ++w) K->add3(st.slot[idx[u]][idx[w]], -ad.hess[u][w]);
   };
 
-  if (options_.shear) {
-    for (int j = 1; j <= 4; ++j) {
-      const int k = j % 4 + 1;
-      if (st.node[j] >= 0 && st.node[k] >= 0) addAngle(j, k, AngleKind::kShear, 0);
-    }
-  }
-  if (options_.bending) {
-    for (int j = 1; j <= 2; ++j) {
-      if (st.node[j] >= 0 && st.node[j + 2] >= 0) addAngle(j, j + 2, AngleKind::kBending, j - 1);
-    }
-  }
+  forEachAngle(st, addAngle);
   return degenerate;
 }
 
@@ -272,17 +279,7 @@ Real ParticleClothModel::stencilEnergy(const Stencil& st, const VecX& x) const {
     }
     if (std::isfinite(en)) e += en;
   };
-  if (options_.shear) {
-    for (int j = 1; j <= 4; ++j) {
-      const int k = j % 4 + 1;
-      if (st.node[j] >= 0 && st.node[k] >= 0) angle(j, k, AngleKind::kShear, 0);
-    }
-  }
-  if (options_.bending) {
-    for (int j = 1; j <= 2; ++j) {
-      if (st.node[j] >= 0 && st.node[j + 2] >= 0) angle(j, j + 2, AngleKind::kBending, j - 1);
-    }
-  }
+  forEachAngle(st, angle);
   return e;
 }
 

@@ -94,6 +94,9 @@ class ParticleClothModel : public ClothModel {
   Index addStencil(const Stencil& st, const VecX& x, VecX& f, BlockSparseMatrix* K, Real* energy) const;
   // The stencil's energy alone (the terms of addStencil, same order, no derivatives).
   Real stencilEnergy(const Stencil& st, const VecX& x) const;
+  // Calls f(a, b, kind, dir) for each angle term of the stencil, in the order both use.
+  template <class F>
+  void forEachAngle(const Stencil& st, F&& f) const;
 
   ParticleTopology topo_;
   Material material_;
