@@ -594,6 +594,48 @@ TEST(SelfCollisionRollback, RandomStepsEndIntersectionFree) {
   }
 }
 
+TEST(SelfCollisionRollback, FirstDetectionFindsEveryCrossingOfABruteForceSearch) {
+  // The broad phase (cells in a hash, neighbouring cells' triangle pairs listed by topology, the
+  // triangles that share a vertex, edges of no triangle) must hand every crossing edge-triangle
+  // pair to the exact test: the crossings of the first detection equal those of a search over all
+  // pairs. A hole and more than 2048 cells put the irregular and the parallel paths to work.
+  std::vector<std::array<int, 2>> pts;
+  for (const auto& p : block(0, 0, 48, 48))
+    if (!(p[0] >= 20 && p[0] < 30 && p[1] >= 15 && p[1] < 25)) pts.push_back(p);
+  const ClothTriangles tris = ClothTriangles::fromTopology(topologyFromCells(pts, 0.01));
+  ASSERT_GT(tris.numTriangles() / 2, 2048);
+  VecX x_old(3 * static_cast<Index>(pts.size()));
+  for (size_t k = 0; k < pts.size(); ++k)
+    x_old.segment<3>(3 * static_cast<Index>(k)) = Vec3(pts[k][1] * 0.01, pts[k][0] * 0.01, 0);
+  for (unsigned seed : {3u, 4u}) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<Real> noise(0, 0.007);
+    VecX x = x_old;
+    for (Index k = 0; k < x.size(); ++k) x[k] += noise(rng);
+    long brute = 0;
+    for (Index e = 0; e < tris.numEdges(); ++e) {
+      const auto& ed = tris.edges[static_cast<size_t>(e)];
+      const Vec3 p = node3(x, ed[0]), q = node3(x, ed[1]);
+      for (Index t = 0; t < tris.numTriangles(); ++t) {
+        if (tris.triangleHasVertex(t, ed[0]) || tris.triangleHasVertex(t, ed[1])) continue;
+        const auto& c = tris.triangles[static_cast<size_t>(t)];
+        const Vec3 a = node3(x, c[0]), b = node3(x, c[1]), d = node3(x, c[2]);
+        const Vec3 lo = a.cwiseMin(b).cwiseMin(d), hi = a.cwiseMax(b).cwiseMax(d);
+        if ((p.cwiseMax(q).array() < lo.array()).any() || (p.cwiseMin(q).array() > hi.array()).any()) continue;
+        if (segmentTriangleIntersect(p, q, a, b, d)) ++brute;
+      }
+    }
+    ASSERT_GT(brute, 0) << "seed " << seed << ": the step crosses nothing, the test tests nothing";
+    SelfCollisionOptions o;
+    o.proximity = false;  // the detection sees the step as given
+    SelfCollisionPass pass(tris, {}, o);
+    VecX xs = x, vs = (x - x_old) / 1e-3;
+    pass.apply(x_old, xs, vs);
+    EXPECT_EQ(pass.lastStats().crossings, brute) << "seed " << seed;
+    EXPECT_EQ(countIntersectingTrianglePairs(tris, xs), 0) << "seed " << seed;
+  }
+}
+
 TEST(SelfCollisionRollback, PassCapIsRespectedAndReported) {
   const RandomCrumple r = randomCrumple(16, 16, 0.01, 9);
   SelfCollisionOptions o;
