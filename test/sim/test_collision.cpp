@@ -598,15 +598,27 @@ TEST(SelfCollisionRollback, FirstDetectionFindsEveryCrossingOfABruteForceSearch)
   // The broad phase (cells in a hash, neighbouring cells' triangle pairs listed by topology, the
   // triangles that share a vertex, edges of no triangle) must hand every crossing edge-triangle
   // pair to the exact test: the crossings of the first detection equal those of a search over all
-  // pairs. A hole and more than 2048 cells put the irregular and the parallel paths to work.
+  // pairs. A hole, a one-particle-wide strip and more than 2048 cells put the irregular and the
+  // parallel paths to work.
   std::vector<std::array<int, 2>> pts;
   for (const auto& p : block(0, 0, 48, 48))
     if (!(p[0] >= 20 && p[0] < 30 && p[1] >= 15 && p[1] < 25)) pts.push_back(p);
+  for (int i = 48; i < 56; ++i) pts.push_back({i, 5});  // a one-particle-wide strip: edges of no triangle
   const ClothTriangles tris = ClothTriangles::fromTopology(topologyFromCells(pts, 0.01));
   ASSERT_GT(tris.numTriangles() / 2, 2048);
+  {
+    std::vector<char> in_triangle(tris.edges.size(), 0);
+    for (const auto& te : tris.triangle_edges)
+      for (Index e : te) in_triangle[static_cast<size_t>(e)] = 1;
+    ASSERT_GT(std::count(in_triangle.begin(), in_triangle.end(), 0), 0) << "no edge outside the triangles";
+  }
   VecX x_old(3 * static_cast<Index>(pts.size()));
-  for (size_t k = 0; k < pts.size(); ++k)
+  for (size_t k = 0; k < pts.size(); ++k) {
     x_old.segment<3>(3 * static_cast<Index>(k)) = Vec3(pts[k][1] * 0.01, pts[k][0] * 0.01, 0);
+    // The strip lies 3 mm above the sheet (and its first edge reaches across it), so that the
+    // step makes its edges cross the sheet.
+    if (pts[k][0] >= 48) x_old.segment<3>(3 * static_cast<Index>(k)) = Vec3(0.05 + 0.01 * (pts[k][0] - 48), 0.10, 0.003);
+  }
   for (unsigned seed : {3u, 4u}) {
     std::mt19937 rng(seed);
     std::normal_distribution<Real> noise(0, 0.007);
