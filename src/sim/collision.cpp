@@ -424,11 +424,27 @@ bool SelfCollisionPass::edgeCrosses(Index e, Index t, const VecX& x) const {
 }
 
 namespace {
+// One empty list per thread (the lists keep their capacity between calls).
+template <class T>
+void resetThreadLists(std::vector<ThreadList<T>>& local, int threads) {
+  local.resize(static_cast<size_t>(threads));
+  for (auto& l : local) l.items.clear();
+}
+
+// The per-thread lists one after the other, in thread order.
+template <class T>
+void concatenate(const std::vector<ThreadList<T>>& local, std::vector<T>& out) {
+  size_t total = 0;
+  for (const auto& l : local) total += l.items.size();
+  out.clear();
+  out.reserve(total);
+  for (const auto& l : local) out.insert(out.end(), l.items.begin(), l.items.end());
+}
+
 // Merges per-thread hit lists into one sorted, duplicate-free list (independent of thread count).
 template <class HitT>
 void mergeSorted(std::vector<ThreadList<HitT>>& local, std::vector<HitT>& out) {
-  out.clear();
-  for (auto& l : local) out.insert(out.end(), l.items.begin(), l.items.end());
+  concatenate(local, out);
   std::sort(out.begin(), out.end());
   out.erase(std::unique(out.begin(), out.end()), out.end());
 }
@@ -499,7 +515,8 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   // broad phase works on grid cells (the one or two triangles that share a cell diagonal, half as
   // many boxes as triangles): the cell boxes, inflated by `inflate`, go into a hash that is queried
   // once per cell with its own box, keeping the partners with a larger id; the triangle pairs of
-  // two such cells are then filtered with the triangle boxes.
+  // two such cells are then filtered with the triangle boxes. Neighbouring cells always overlap:
+  // they are skipped, and their vertex-disjoint triangle pairs come from near_pairs_.
   const Index G = static_cast<Index>(groups_.size());
   computeTriangleBoxes(x_old, x, 0.0, ahead);
   group_boxes_.resize(static_cast<size_t>(G));
@@ -516,8 +533,7 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   }
   group_hash_.build(group_boxes_, options_.cell_size_factor * tris_.spacing);
   auto& local = local_pairs_;
-  local.resize(static_cast<size_t>(threadCount()));
-  for (auto& l : local) l.items.clear();
+  resetThreadLists(local, threadCount());
   const Index nn = static_cast<Index>(near_pairs_.size());
 #pragma omp parallel if (G >= kParallelMin)
   {
@@ -548,11 +564,7 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
         out.push_back(pr);
     }
   }
-  size_t total = 0;
-  for (const auto& l : local) total += l.items.size();
-  cand_.clear();
-  cand_.reserve(total);
-  for (const auto& l : local) cand_.insert(cand_.end(), l.items.begin(), l.items.end());
+  concatenate(local, cand_);
 }
 
 void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
@@ -898,10 +910,8 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   const Index m = nc + nav + nae;
   auto& lvt = local_vt_;
   auto& lee = local_ee_;
-  lvt.resize(static_cast<size_t>(threadCount()));
-  lee.resize(static_cast<size_t>(threadCount()));
-  for (auto& l : lvt) l.items.clear();
-  for (auto& l : lee) l.items.clear();
+  resetThreadLists(lvt, threadCount());
+  resetThreadLists(lee, threadCount());
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
     auto& ovt = lvt[static_cast<size_t>(threadId())].items;
@@ -973,11 +983,9 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
       }
     }
   }
-  prox_cache_vt_.clear();
-  prox_cache_ee_.clear();
   // (The order is the thread's; detectProximity sorts what it finds, so results do not depend on it.)
-  for (auto& l : lvt) prox_cache_vt_.insert(prox_cache_vt_.end(), l.items.begin(), l.items.end());
-  for (auto& l : lee) prox_cache_ee_.insert(prox_cache_ee_.end(), l.items.begin(), l.items.end());
+  concatenate(lvt, prox_cache_vt_);
+  concatenate(lee, prox_cache_ee_);
 }
 
 void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const {
@@ -1056,8 +1064,7 @@ void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::
   const Index nvt = static_cast<Index>(prox_cache_vt_.size()), nee = static_cast<Index>(prox_cache_ee_.size());
   const Index m = nvt + nee;
   auto& local = local_prox_;
-  local.resize(static_cast<size_t>(threadCount()));
-  for (auto& l : local) l.items.clear();
+  resetThreadLists(local, threadCount());
 #pragma omp parallel if (m >= kParallelMin)
   {
     auto& out = local[static_cast<size_t>(threadId())].items;

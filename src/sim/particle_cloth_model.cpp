@@ -108,6 +108,17 @@ ParticleClothModel::ParticleClothModel(ParticleTopology topology, Material mater
   }
 }
 
+Real ParticleClothModel::shearEnergy(Real theta) const {
+  const Real w = 0.25 * topo_.spacing * topo_.spacing;
+  const Real t = std::abs(theta);
+  return w * 0.5 * (material_.shearEnergyDensitySI(0, t) + material_.shearEnergyDensitySI(1, t));
+}
+
+Real ParticleClothModel::bendEnergy(int dir, Real theta) const {
+  const Real d = topo_.spacing;
+  return d * d * material_.bendEnergyDensitySI(dir, std::abs(theta) / d);
+}
+
 AngleProfile ParticleClothModel::shearProfile(Real theta) const {
   // Mean of warp and weft KES shear curves; weight d^2/4 per corner angle (decisions 3, 5).
   const Real w = 0.25 * topo_.spacing * topo_.spacing;
@@ -116,7 +127,7 @@ AngleProfile ParticleClothModel::shearProfile(Real theta) const {
   const Real F = 0.5 * (material_.shearForceSI(0, t) + material_.shearForceSI(1, t));
   const Real dF = 0.5 * (material_.shearSlopeSI(0, t) + material_.shearSlopeSI(1, t));
   AngleProfile p;
-  p.energy = w * 0.5 * (material_.shearEnergyDensitySI(0, t) + material_.shearEnergyDensitySI(1, t));
+  p.energy = shearEnergy(theta);
   p.dE = w * sign * F;
   p.d2E = w * dF;
   p.secant = t > 0 ? w * F / t : p.d2E;
@@ -129,13 +140,21 @@ AngleProfile ParticleClothModel::bendProfile(int dir, Real theta) const {
   const Real t = std::abs(theta);
   const Real kappa = t / d;
   AngleProfile p;
-  p.energy = d * d * material_.bendEnergyDensitySI(dir, kappa);
+  p.energy = bendEnergy(dir, theta);
   const Real M = material_.bendMomentSI(dir, kappa);
   p.dE = d * M;
   p.d2E = material_.bendSlopeSI(dir, kappa);
   p.secant = t > 0 ? d * M / t : p.d2E;
   return p;
 }
+
+namespace {
+// The angle a term acts on: the shear angle's deviation from a right angle, or the bending angle
+// (the deviation of the hinge from straight).
+Real termAngle(const AngleGeometry& geo, AngleKind kind) {
+  return kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
+}
+}  // namespace
 
 template <class F>
 void ParticleClothModel::forEachAngle(const Stencil& st, F&& f) const {
@@ -189,7 +208,7 @@ Index ParticleClothModel::addStencil(const Stencil& st, const VecX& x, VecX& f, 
       ++degenerate;
       return;
     }
-    const Real theta = kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
+    const Real theta = termAngle(geo, kind);
     AngleProfile prof = kind == AngleKind::kShear ? shearProfile(theta) : bendProfile(dir, theta);
     if (kind == AngleKind::kBending) {
       const Real w = st.bend_width[dir];
@@ -266,17 +285,9 @@ Real ParticleClothModel::stencilEnergy(const Stencil& st, const VecX& x) const {
   auto angle = [&](int a, int b, AngleKind kind, int dir) {
     AngleGeometry geo;
     if (!angleGeometry(p0, node3(x, st.node[a]), node3(x, st.node[b]), &geo)) return;
-    const Real theta = kind == AngleKind::kShear ? geo.phi - kPi / 2 : kPi - geo.phi;
-    Real en;
-    if (kind == AngleKind::kShear) {
-      const Real w = 0.25 * topo_.spacing * topo_.spacing;
-      const Real t = std::abs(theta);
-      en = w * 0.5 * (material_.shearEnergyDensitySI(0, t) + material_.shearEnergyDensitySI(1, t));
-    } else {
-      const Real d = topo_.spacing;
-      en = d * d * material_.bendEnergyDensitySI(dir, std::abs(theta) / d);
-      en *= st.bend_width[dir];
-    }
+    const Real theta = termAngle(geo, kind);
+    Real en = kind == AngleKind::kShear ? shearEnergy(theta) : bendEnergy(dir, theta);
+    if (kind == AngleKind::kBending) en *= st.bend_width[dir];
     if (std::isfinite(en)) e += en;
   };
   forEachAngle(st, angle);

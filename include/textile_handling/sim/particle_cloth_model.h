@@ -80,6 +80,9 @@ class ParticleClothModel : public ClothModel {
   Real tensionConstant() const { return c0_; }
 
   /// Profiles of the angle energies as functions of theta (exposed for tests).
+  // Energy of one shear angle / bending hinge (unweighted by the hinge width); the profiles' energy.
+  Real shearEnergy(Real theta) const;
+  Real bendEnergy(int dir, Real theta) const;
   AngleProfile shearProfile(Real theta) const;
   AngleProfile bendProfile(int dir, Real theta) const;
 
