@@ -268,16 +268,11 @@ void TextileRecognizerNode::process(const Frame& f) {
   while (!history_.empty() && (h.stamp < history_.back().stamp ||
                                (h.stamp - history_.front().stamp).toSec() > fusion_window_s_))
     history_.pop_front();
+  std::vector<double> earlier_yaws;  // newest first
+  for (auto it = history_.rbegin(); it != history_.rend(); ++it) earlier_yaws.push_back(it->gripper_yaw_deg);
   std::vector<recognition::CameraObservation> images{obs};
-  std::vector<double> chosen_yaws{yaw};
-  for (auto it = history_.rbegin(); it != history_.rend() && static_cast<int>(images.size()) < fusion_views_; ++it) {
-    bool distinct = true;  // the partner must differ from every image already chosen
-    for (double y : chosen_yaws)
-      distinct = distinct && std::fabs(std::remainder(it->gripper_yaw_deg - y, 360.0)) >= fusion_min_separation_deg_;
-    if (!distinct) continue;
-    images.push_back(it->observation);
-    chosen_yaws.push_back(it->gripper_yaw_deg);
-  }
+  for (std::size_t k : recognition::chooseFusionPartners(yaw, earlier_yaws, fusion_views_, fusion_min_separation_deg_))
+    images.push_back(history_[history_.size() - 1 - k].observation);
   recognition::RecognitionResult res;
   try {
     res = images.size() > 1 ? recognizer_->recognize(images) : recognizer_->recognize(obs);

@@ -947,5 +947,19 @@ cv::Mat TextileRecognizer::debugImage(const CameraObservation& obs, const Recogn
   return out;
 }
 
+std::vector<std::size_t> chooseFusionPartners(double yaw_deg, const std::vector<double>& earlier_yaws_deg, int max_views,
+                                              double min_separation_deg) {
+  std::vector<std::size_t> chosen;
+  std::vector<double> yaws{yaw_deg};
+  for (std::size_t k = 0; k < earlier_yaws_deg.size() && static_cast<int>(yaws.size()) < max_views; ++k) {
+    bool distinct = true;  // the partner must differ from every image already chosen
+    for (double y : yaws) distinct = distinct && std::fabs(std::remainder(earlier_yaws_deg[k] - y, 360.0)) >= min_separation_deg;
+    if (!distinct) continue;
+    chosen.push_back(k);
+    yaws.push_back(earlier_yaws_deg[k]);
+  }
+  return chosen;
+}
+
 }  // namespace recognition
 }  // namespace textile_handling

@@ -156,15 +156,18 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
       std::printf(" single: error: %s\n", e.what());
     }
-    // Fusion as the node does it: this image and the latest earlier one of another gripper yaw.
-    for (auto it = history.rbegin(); it != history.rend(); ++it) {
-      if (std::fabs(std::remainder(it->yaw_deg - yaw, 360.0)) < 20.0) continue;
+    // Fusion as the node does it with its default parameters (config/textile_recognizer.yaml: two
+    // views at least 20 degrees apart).
+    std::vector<double> earlier_yaws;  // newest first
+    for (auto it = history.rbegin(); it != history.rend(); ++it) earlier_yaws.push_back(it->yaw_deg);
+    const std::vector<std::size_t> partners = recognition::chooseFusionPartners(yaw, earlier_yaws, 2, 20.0);
+    if (!partners.empty()) {
+      const Past& partner = history[history.size() - 1 - partners.front()];
       try {
-        report("fused: ", rec.recognize(std::vector<recognition::CameraObservation>{obs, it->obs}), camera_gripper);
+        report("fused: ", rec.recognize(std::vector<recognition::CameraObservation>{obs, partner.obs}), camera_gripper);
       } catch (const std::exception& e) {
         std::printf(" fused: error: %s\n", e.what());
       }
-      break;
     }
     history.push_back(Past{yaw, obs});
   }

@@ -633,3 +633,14 @@ TEST(RecognizerEmptyDatabase, ErrorsUntilReloadFindsSimulations) {
   EXPECT_NO_THROW(rec.recognize(observe(t, 40.0, 0.0, false, 4)));
   removeDb(path);
 }
+
+TEST(FusionPartners, NewestDistinctHeadingsUpToTheViewCount) {
+  // Earlier headings newest first: 5 is too close to 0, 100 too close to the chosen 90, 350 wraps
+  // around to 10 degrees from 0.
+  const std::vector<double> earlier{5.0, 90.0, 100.0, 350.0, 180.0};
+  EXPECT_EQ(chooseFusionPartners(0.0, earlier, 3, 20.0), (std::vector<std::size_t>{1, 4}));
+  EXPECT_EQ(chooseFusionPartners(0.0, earlier, 2, 20.0), (std::vector<std::size_t>{1}));
+  EXPECT_TRUE(chooseFusionPartners(0.0, earlier, 1, 20.0).empty());
+  EXPECT_TRUE(chooseFusionPartners(355.0, {5.0, 10.0}, 2, 20.0).empty());
+  EXPECT_TRUE(chooseFusionPartners(0.0, {}, 2, 20.0).empty());
+}

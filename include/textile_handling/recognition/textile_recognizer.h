@@ -243,5 +243,12 @@ class TextileRecognizer {
   std::shared_ptr<const State> state_;
 };
 
+/// Images to fuse with one taken at gripper heading `yaw_deg` (the cell turns the gripper between
+/// images of the same hold): indices into `earlier_yaws_deg` (the earlier images' headings, newest
+/// first) of up to max_views - 1 images, newest first, each at least min_separation_deg away from
+/// this image and from every image chosen before it.
+std::vector<std::size_t> chooseFusionPartners(double yaw_deg, const std::vector<double>& earlier_yaws_deg, int max_views,
+                                              double min_separation_deg);
+
 }  // namespace recognition
 }  // namespace textile_handling
