@@ -381,20 +381,36 @@ long SelfCollisionPass::apply(const VecX& x_old, VecX& x, VecX& v) {
   return events;
 }
 
+geom::Aabb SelfCollisionPass::triangleBox(Index t, const VecX& x_old, const VecX& x, Real inflate, Real ahead) const {
+  geom::Aabb b;
+  for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
+    b.extend(node3(x_old, c));
+    b.extend(node3(x, c));
+    if (ahead > 0) b.extend(Vec3(node3(x, c) + ahead * (node3(x, c) - node3(x_old, c))));
+  }
+  if (inflate > 0) b.inflate(inflate);
+  return b;
+}
+
 void SelfCollisionPass::computeTriangleBoxes(const VecX& x_old, const VecX& x, Real inflate, Real ahead) {
   const Index T = tris_.numTriangles();
   boxes_.resize(static_cast<size_t>(T));
 #pragma omp parallel for if (T >= kParallelMin) schedule(static)
-  for (Index t = 0; t < T; ++t) {
-    geom::Aabb b;
-    for (Index c : tris_.triangles[static_cast<size_t>(t)]) {
-      b.extend(node3(x_old, c));
-      b.extend(node3(x, c));
-      if (ahead > 0) b.extend(Vec3(node3(x, c) + ahead * (node3(x, c) - node3(x_old, c))));
-    }
-    if (inflate > 0) b.inflate(inflate);
-    boxes_[static_cast<size_t>(t)] = b;
+  for (Index t = 0; t < T; ++t) boxes_[static_cast<size_t>(t)] = triangleBox(t, x_old, x, inflate, ahead);
+}
+
+void SelfCollisionPass::computeSweptBoxes(const VecX& x_old, const VecX& x) {
+  const Index T = tris_.numTriangles(), E = tris_.numEdges();
+  boxes_.resize(static_cast<size_t>(T));
+  edge_boxes_.resize(static_cast<size_t>(E));
+#pragma omp parallel if (T + E >= kParallelMin)
+  {
+#pragma omp for schedule(static) nowait
+    for (Index t = 0; t < T; ++t) boxes_[static_cast<size_t>(t)] = triangleBox(t, x_old, x, 0.0, 0.0);
+#pragma omp for schedule(static) nowait
+    for (Index e = 0; e < E; ++e) edge_boxes_[static_cast<size_t>(e)] = edgeBox(e, x_old, x);
   }
+  query_inflate_ = 0;
 }
 
 void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate) {
@@ -517,19 +533,24 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   // once per cell with its own box, keeping the partners with a larger id; the triangle pairs of
   // two such cells are then filtered with the triangle boxes. Neighbouring cells always overlap:
   // they are skipped, and their vertex-disjoint triangle pairs come from near_pairs_.
-  const Index G = static_cast<Index>(groups_.size());
-  computeTriangleBoxes(x_old, x, 0.0, ahead);
+  const Index G = static_cast<Index>(groups_.size()), T = tris_.numTriangles();
+  boxes_.resize(static_cast<size_t>(T));
   group_boxes_.resize(static_cast<size_t>(G));
-#pragma omp parallel for if (G >= kParallelMin) schedule(static)
-  for (Index g = 0; g < G; ++g) {
-    geom::Aabb b = boxes_[static_cast<size_t>(groups_[static_cast<size_t>(g)][0])];
-    const Index t2 = groups_[static_cast<size_t>(g)][1];
-    if (t2 >= 0) {
-      b.extend(boxes_[static_cast<size_t>(t2)].lo);
-      b.extend(boxes_[static_cast<size_t>(t2)].hi);
+#pragma omp parallel if (G >= kParallelMin)
+  {
+#pragma omp for schedule(static)
+    for (Index t = 0; t < T; ++t) boxes_[static_cast<size_t>(t)] = triangleBox(t, x_old, x, 0.0, ahead);
+#pragma omp for schedule(static)
+    for (Index g = 0; g < G; ++g) {
+      geom::Aabb b = boxes_[static_cast<size_t>(groups_[static_cast<size_t>(g)][0])];
+      const Index t2 = groups_[static_cast<size_t>(g)][1];
+      if (t2 >= 0) {
+        b.extend(boxes_[static_cast<size_t>(t2)].lo);
+        b.extend(boxes_[static_cast<size_t>(t2)].hi);
+      }
+      if (inflate > 0) b.inflate(inflate);
+      group_boxes_[static_cast<size_t>(g)] = b;
     }
-    if (inflate > 0) b.inflate(inflate);
-    group_boxes_[static_cast<size_t>(g)] = b;
   }
   group_hash_.build(group_boxes_, options_.cell_size_factor * tris_.spacing);
   auto& local = local_pairs_;
@@ -567,11 +588,12 @@ void SelfCollisionPass::collectCandidates(const VecX& x_old, const VecX& x, Real
   concatenate(local, cand_);
 }
 
-void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
+void SelfCollisionPass::detectFromCandidates(const std::vector<std::pair<Index, Index>>& pairs,
+                                             Index num_edges_considered, const VecX& x, std::vector<Hit>& hits) const {
   // The first detection of a pass: the candidate triangle pairs (boxes containing the current
   // swept boxes) with the edges each triangle owns against the other triangle, plus the edges that
   // belong to no triangle against the hash.
-  const Index nc = static_cast<Index>(cand_.size()), na = static_cast<Index>(adj_cross_.size());
+  const Index nc = static_cast<Index>(pairs.size()), na = static_cast<Index>(adj_cross_.size());
   const Index m = nc + na + static_cast<Index>(orphan_edges_.size());
   std::vector<ThreadList<Hit>> local(static_cast<size_t>(threadCount()));
 #pragma omp parallel if (m >= 4 * kParallelMin)
@@ -599,7 +621,7 @@ void SelfCollisionPass::detectFromCandidates(Index num_edges_considered, const V
             out.push_back(Hit{c.first, c.second});
         }
       } else if (k < nc) {
-        const Index a = cand_[static_cast<size_t>(k)].first, b = cand_[static_cast<size_t>(k)].second;
+        const Index a = pairs[static_cast<size_t>(k)].first, b = pairs[static_cast<size_t>(k)].second;
         if (!boxes_[static_cast<size_t>(a)].overlaps(boxes_[static_cast<size_t>(b)])) continue;
         {  // triangles clearly apart at x cannot cross (the margin covers rounding)
           const auto& ca = tris_.triangles[static_cast<size_t>(a)];
@@ -888,18 +910,6 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   std::vector<geom::Aabb>& ebox = prox_ebox_;
   tbox.resize(static_cast<size_t>(T));
   ebox.resize(static_cast<size_t>(E));
-#pragma omp parallel for if (T >= kParallelMin) schedule(static)
-  for (Index t = 0; t < T; ++t) {
-    geom::Aabb b;
-    for (Index c : tris_.triangles[static_cast<size_t>(t)]) b.extend(node3(x_old, c));
-    tbox[static_cast<size_t>(t)] = b;
-  }
-#pragma omp parallel for if (E >= kParallelMin) schedule(static)
-  for (Index e = 0; e < E; ++e) {
-    geom::Aabb b;
-    for (Index c : tris_.edges[static_cast<size_t>(e)]) b.extend(node3(x_old, c));
-    ebox[static_cast<size_t>(e)] = b;
-  }
   const Real r2 = radius * radius;
   const bool with_edges = options_.proximity_edges;
   // Edge-edge pairs in which at least one edge is a grid edge: the vertex-triangle pairs describe
@@ -910,12 +920,28 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   const Index m = nc + nav + nae;
   auto& lvt = local_vt_;
   auto& lee = local_ee_;
+  auto& ltri = local_tri_;
   resetThreadLists(lvt, threadCount());
   resetThreadLists(lee, threadCount());
+  resetThreadLists(ltri, threadCount());
+  // One parallel region (its start costs more than a barrier): the boxes at x_old, then the pairs.
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
+#pragma omp for schedule(static) nowait
+    for (Index t = 0; t < T; ++t) {
+      geom::Aabb b;
+      for (Index c : tris_.triangles[static_cast<size_t>(t)]) b.extend(node3(x_old, c));
+      tbox[static_cast<size_t>(t)] = b;
+    }
+#pragma omp for schedule(static)
+    for (Index e = 0; e < E; ++e) {
+      geom::Aabb b;
+      for (Index c : tris_.edges[static_cast<size_t>(e)]) b.extend(node3(x_old, c));
+      ebox[static_cast<size_t>(e)] = b;
+    }
     auto& ovt = lvt[static_cast<size_t>(threadId())].items;
     auto& oee = lee[static_cast<size_t>(threadId())].items;
+    auto& otri = ltri[static_cast<size_t>(threadId())].items;
     // Vertices owned by triangle k against triangle t2.
     auto vt = [&](Index k, Index t2) {
       const auto& c = tris_.triangles[static_cast<size_t>(t2)];
@@ -962,6 +988,7 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
                            node3(x_old, c2[1]), node3(x_old, c2[2]), r2))
           continue;
       }
+      otri.push_back(cand_[static_cast<size_t>(q)]);
       vt(k, t2);
       vt(t2, k);
       if (!with_edges) continue;
@@ -986,6 +1013,7 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
   // (The order is the thread's; detectProximity sorts what it finds, so results do not depend on it.)
   concatenate(lvt, prox_cache_vt_);
   concatenate(lee, prox_cache_ee_);
+  concatenate(ltri, prox_tri_);
 }
 
 void SelfCollisionPass::detectProximity(const VecX& x_old, Real thickness, std::vector<ProxPair>& pairs) const {
@@ -1177,8 +1205,8 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
     }
   };
   std::vector<char> edge_listed(propagate ? static_cast<size_t>(ne) : 0, 0);
-  std::vector<Index> edges;
-  std::vector<Real> edge_len;  // target lengths (after the step), by position in `edges`
+  std::vector<std::pair<Index, Real>> edges;  // grid edges and their target lengths (after the step)
+  size_t region_scanned = 0;                  // region[0, region_scanned) has its edges listed
   for (int it = 0; it < options_.proximity_iterations; ++it) {
     Real change = 0;
     for (size_t k = 0; k < pairs.size(); ++k) {
@@ -1188,6 +1216,9 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       for (int j = 0; j < 4; ++j) rel += pp.w[j] * (node3(x, pp.idx[j]) - node3(x_old, pp.idx[j]));
       const Real delta = pp.n.dot(rel);
       const Real target = pp.gap >= thickness ? thickness - pp.gap : sep * (thickness - pp.gap);
+      // A pair without multipliers that does not approach past its target stays so (n_new = 0
+      // caps the friction at 0: nothing moves); most pairs of a sweep are such.
+      if (ln[k] == 0 && lt[k].isZero(0) && !(target - delta > 0)) continue;
       const Real n_new = std::max(0.0, ln[k] + (target - delta) / W[k]);
       // Friction: cancel the relative tangential displacement within |lambda_t| <= mu lambda_n.
       Vec3 t_new = lt[k] - (rel - delta * pp.n) / W[k];
@@ -1207,32 +1238,29 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
       if (!(change > tol)) break;
       continue;
     }
-    // Grid edges around every particle moved so far (kept sorted: deterministic).
+    // Grid edges around every particle moved so far (kept sorted: deterministic). The region only
+    // grows, so only its particles added since the last sweep can bring new edges.
     const size_t before = edges.size();
-    for (Index p : region)
+    for (; region_scanned < region.size(); ++region_scanned) {
+      const Index p = region[region_scanned];
       for (Index q = vertex_edge_start_[static_cast<size_t>(p)]; q < vertex_edge_start_[static_cast<size_t>(p) + 1]; ++q) {
         const Index e = vertex_edge_list_[static_cast<size_t>(q)];
         if (e >= ne || edge_listed[static_cast<size_t>(e)]) continue;
         edge_listed[static_cast<size_t>(e)] = 1;
-        edges.push_back(e);
-      }
-    if (edges.size() != before) {
-      std::sort(edges.begin(), edges.end());
-      edge_len.resize(edges.size());
-      for (size_t k = 0; k < edges.size(); ++k) {
-        const auto& ed = tris_.edges[static_cast<size_t>(edges[k])];
-        edge_len[k] = (node3(x_pred, ed[0]) - node3(x_pred, ed[1])).norm();
+        const auto& ed = tris_.edges[static_cast<size_t>(e)];
+        edges.emplace_back(e, (node3(x_pred, ed[0]) - node3(x_pred, ed[1])).norm());
       }
     }
+    if (edges.size() != before) std::sort(edges.begin(), edges.end());
     for (size_t k = 0; k < edges.size(); ++k) {
-      const auto& ed = tris_.edges[static_cast<size_t>(edges[k])];
+      const auto& ed = tris_.edges[static_cast<size_t>(edges[k].first)];
       const Index a = ed[0], b = ed[1];
       const Real wa = inv_mass_[static_cast<size_t>(a)], wb = inv_mass_[static_cast<size_t>(b)];
       if (!(wa + wb > 0)) continue;
       Vec3 u = node3(x, a) - node3(x, b);
       const Real len = u.norm();
       if (!(len > 0)) continue;
-      const Real c = len - edge_len[k];
+      const Real c = len - edges[k].second;
       if (!(std::abs(c) > tol)) continue;
       u *= c / ((wa + wb) * len);
       if (wa > 0) {
@@ -1444,12 +1472,14 @@ long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
     st.proximity_ms += msSince(t0);
   }
   t0 = Clock::now();
-  // The triangle pairs that can touch at x (after the proximity stage's corrections).
-  if (!candidatesCover(x, 0.0)) buildCandidates(x);
+  // The triangle pairs that can touch at x (after the proximity stage's corrections): those of the
+  // proximity build that were within Rp while no two particles have moved apart by more than Rp
+  // since (a quarter of the candidate pairs on the towel), else the candidate pairs.
+  const bool near_pairs_cover = prox && list_valid_ && movedLessThan(prox_ref_, x, Rp - 1e-6);
+  if (!near_pairs_cover && !candidatesCover(x, 0.0)) buildCandidates(x);
   st.broad_ms += msSince(t0);
   t0 = Clock::now();
-  computeEdgeBoxes(x_old, x);
-  refreshBoxes(x_old, x, 0.0);  // the current swept boxes (the list's boxes contain them)
+  computeSweptBoxes(x_old, x);  // the current swept boxes (the list's boxes contain them)
   st.broad_ms += msSince(t0);
   if (!orphan_edges_.empty() && !hash_current_) {  // orphan edges are queried against the hash
     buildHash(x_old, x, 0.0);
@@ -1457,7 +1487,7 @@ long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
   }
   t0 = Clock::now();
   std::vector<Hit> hits;
-  detectFromCandidates(E, x, hits);
+  detectFromCandidates(near_pairs_cover ? prox_tri_ : cand_, E, x, hits);
   st.detect_ms += msSince(t0);
   st.crossings = static_cast<long>(hits.size());
   long events = 0;

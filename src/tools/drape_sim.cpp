@@ -67,7 +67,8 @@ void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r,
       << "  proximity_total: " << per_step(t.proximity_ms) << "\n"
       << "  crossing_detect: " << per_step(t.detect_ms) << "\n"
       << "  resolve: " << per_step(t.resolve_ms) << "\n"
-      << "self_collision_candidate_list_builds: " << t.candidate_list_builds << "\n";
+      << "self_collision_candidate_list_builds: " << t.candidate_list_builds << "\n"
+      << "self_collision_proximity_list_builds: " << t.proximity_list_builds << "\n";
   }
 }
 
