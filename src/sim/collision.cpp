@@ -1251,7 +1251,11 @@ long SelfCollisionPass::resolveProximity(const std::vector<ProxPair>& pairs, Rea
         edges.emplace_back(e, (node3(x_pred, ed[0]) - node3(x_pred, ed[1])).norm());
       }
     }
-    if (edges.size() != before) std::sort(edges.begin(), edges.end());
+    if (edges.size() != before) {  // sort the new ones and merge them in
+      const auto mid = edges.begin() + static_cast<std::ptrdiff_t>(before);
+      std::sort(mid, edges.end());
+      std::inplace_merge(edges.begin(), mid, edges.end());
+    }
     for (size_t k = 0; k < edges.size(); ++k) {
       const auto& ed = tris_.edges[static_cast<size_t>(edges[k].first)];
       const Index a = ed[0], b = ed[1];
