@@ -366,7 +366,6 @@ long SelfCollisionPass::apply(const VecX& x_old, VecX& x, VecX& v) {
     throw std::invalid_argument("SelfCollisionPass: state size does not match the triangulation");
   SelfCollisionStats st;
   long events = 0;
-  query_inflate_ = 0;
   if (!tris_.triangles.empty()) {
     switch (options_.version) {
       case SelfCollisionVersion::kPointPath: events = applyV1(x_old, x, v, st); break;
@@ -410,17 +409,11 @@ void SelfCollisionPass::computeSweptBoxes(const VecX& x_old, const VecX& x) {
 #pragma omp for schedule(static) nowait
     for (Index e = 0; e < E; ++e) edge_boxes_[static_cast<size_t>(e)] = edgeBox(e, x_old, x);
   }
-  query_inflate_ = 0;
 }
 
 void SelfCollisionPass::buildHash(const VecX& x_old, const VecX& x, Real inflate) {
   computeTriangleBoxes(x_old, x, inflate, 0.0);
   hash_.build(boxes_, options_.cell_size_factor * tris_.spacing);
-}
-
-void SelfCollisionPass::refreshBoxes(const VecX& x_old, const VecX& x, Real stale) {
-  computeTriangleBoxes(x_old, x, 0.0, 0.0);
-  query_inflate_ = stale;
 }
 
 geom::Aabb SelfCollisionPass::edgeBox(Index e, const VecX& x_old, const VecX& x) const {
@@ -512,14 +505,14 @@ void SelfCollisionPass::detectEdges(Index num_edges_considered, const VecX& x, s
         bool any = false;
         for (int j = 0; j < no; ++j) any = any || own[j] < num_edges_considered;
         if (!any) continue;
-        query.forEachOverlap(queryBox(boxes_[static_cast<size_t>(k)]), [&](int t2) {
+        query.forEachOverlap(boxes_[static_cast<size_t>(k)], [&](int t2) {
           for (int j = 0; j < no; ++j)
             if (own[j] < num_edges_considered) test(own[j], t2);
         });
       } else {
         const Index e = orphan_edges_[static_cast<size_t>(k - T)];
         if (e >= num_edges_considered) continue;
-        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) { test(e, t2); });
+        query.forEachOverlap(edge_boxes_[static_cast<size_t>(e)], [&](int t2) { test(e, t2); });
       }
     }
   }
@@ -635,7 +628,7 @@ void SelfCollisionPass::detectFromCandidates(const std::vector<std::pair<Index, 
       } else {
         const Index e = orphan_edges_[static_cast<size_t>(k - nc - na)];
         if (e >= num_edges_considered) continue;
-        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) { test(e, t2); });
+        query.forEachOverlap(edge_boxes_[static_cast<size_t>(e)], [&](int t2) { test(e, t2); });
       }
     }
   }
@@ -695,7 +688,7 @@ void SelfCollisionPass::detectIncremental(const std::vector<Index>& moved, Index
       if (k < static_cast<Index>(work.size())) {
         const Index t = work[static_cast<size_t>(k)];
         const bool td = triDirty(t);
-        query.forEachOverlap(queryBox(boxes_[static_cast<size_t>(t)]), [&](int t2) {
+        query.forEachOverlap(boxes_[static_cast<size_t>(t)], [&](int t2) {
           if (td)  // the dirty triangle t against every edge near it
             for (int j = 0; j < numOwnedEdges(t2); ++j) test(ownedEdges(t2)[j], t);
           for (int j = 0; j < numOwnedEdges(t); ++j) {  // t's dirty edges against every triangle
@@ -707,7 +700,7 @@ void SelfCollisionPass::detectIncremental(const std::vector<Index>& moved, Index
         const Index e = orphan_edges_[static_cast<size_t>(k) - work.size()];
         if (e >= num_edges_considered) continue;
         const bool ed = edgeDirty(e);
-        query.forEachOverlap(queryBox(edge_boxes_[static_cast<size_t>(e)]), [&](int t2) {
+        query.forEachOverlap(edge_boxes_[static_cast<size_t>(e)], [&](int t2) {
           if (ed || triDirty(t2)) test(e, t2);
         });
       }

@@ -280,18 +280,11 @@ class SelfCollisionPass : public PostStepPass {
   /// motion when > 0), inflated by `inflate`.
   void computeTriangleBoxes(const VecX& x_old, const VecX& x, Real inflate, Real ahead);
   geom::Aabb triangleBox(Index t, const VecX& x_old, const VecX& x, Real inflate, Real ahead) const;
-  // The swept triangle and edge boxes of the step (refreshBoxes(.., 0) and computeEdgeBoxes), in
-  // one parallel region: each region's start costs about 13 us on the 2-core VM with passive
-  // waiting, more than one of these loops.
+  // The swept triangle and edge boxes of the step (computeTriangleBoxes(.., 0, 0) and
+  // computeEdgeBoxes) in one parallel region: each region's start costs about 13 us on the 2-core
+  // VM with passive waiting, more than one of these loops.
   void computeSweptBoxes(const VecX& x_old, const VecX& x);
   void buildHash(const VecX& x_old, const VecX& x, Real inflate);
-  // Recomputes the swept triangle boxes for the current x without rebuilding the hash; its stored
-  // boxes are then stale by at most `stale` (queries are inflated by that much).
-  void refreshBoxes(const VecX& x_old, const VecX& x, Real stale);
-  geom::Aabb queryBox(geom::Aabb b) const {
-    if (query_inflate_ > 0) b.inflate(query_inflate_);
-    return b;
-  }
   void computeEdgeBoxes(const VecX& x_old, const VecX& x);
   geom::Aabb edgeBox(Index e, const VecX& x_old, const VecX& x) const;
   bool edgeCrosses(Index e, Index t, const VecX& x) const;
@@ -372,7 +365,6 @@ class SelfCollisionPass : public PostStepPass {
   geom::SpatialHash hash_;
   std::vector<geom::Aabb> boxes_;       // swept triangle boxes of the current apply()
   std::vector<geom::Aabb> edge_boxes_;  // swept edge boxes of the current apply()
-  Real query_inflate_ = 0;              // how far the hash's stored boxes may be stale
   std::vector<std::array<Index, 2>> groups_;  // broad-phase cells: 1 or 2 triangles (-1: none)
   // Neighbouring cells of each cell (cells with a common vertex; CSR, ascending), and the triangle
   // pairs of neighbouring cells that share no vertex (each once, a < b).
