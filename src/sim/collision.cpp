@@ -200,6 +200,7 @@ void SelfCollisionStats::add(const SelfCollisionStats& o) {
   proximity_detect_ms += o.proximity_detect_ms;
   candidate_list_builds += o.candidate_list_builds;
   proximity_list_builds += o.proximity_list_builds;
+  detections_from_proximity_build += o.detections_from_proximity_build;
 }
 
 // ---- self-collision pass --------------------------------------------------------------------------
@@ -1485,6 +1486,7 @@ long SelfCollisionPass::applyV3(const VecX& x_old, VecX& x, VecX& v, SelfCollisi
   t0 = Clock::now();
   std::vector<Hit> hits;
   detectFromCandidates(near_pairs_cover ? prox_tri_ : cand_, E, x, hits);
+  if (near_pairs_cover) ++st.detections_from_proximity_build;
   st.detect_ms += msSince(t0);
   st.crossings = static_cast<long>(hits.size());
   long events = 0;

@@ -68,7 +68,8 @@ void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r,
       << "  crossing_detect: " << per_step(t.detect_ms) << "\n"
       << "  resolve: " << per_step(t.resolve_ms) << "\n"
       << "self_collision_candidate_list_builds: " << t.candidate_list_builds << "\n"
-      << "self_collision_proximity_list_builds: " << t.proximity_list_builds << "\n";
+      << "self_collision_proximity_list_builds: " << t.proximity_list_builds << "\n"
+      << "self_collision_detections_from_proximity_build: " << t.detections_from_proximity_build << "\n";
   }
 }
 

@@ -648,6 +648,58 @@ TEST(SelfCollisionRollback, FirstDetectionFindsEveryCrossingOfABruteForceSearch)
   }
 }
 
+TEST(SelfCollisionRollback, DetectionFromTheProximityBuildFindsEveryCrossing) {
+  // With the proximity stage on, the first detection tests only the triangle pairs the proximity
+  // build kept (within Rp = 2 T at x_old) while no two particles moved apart by more than Rp since;
+  // else all candidate pairs. A sheet hangs 4.5 mm over another (beyond the search radius R = 1.5 T
+  // = 3.75 mm, within Rp = 5 mm: no proximity pair acts on it). Some of its particles then drop
+  // through the lower sheet: by 4.8 mm (less than Rp: the short list) or by 7 mm (more: the
+  // candidate pairs). Both must find every crossing of a search over all pairs.
+  const Real d = 0.01;
+  std::vector<std::array<int, 2>> pts = block(0, 0, 24, 24);
+  const auto upper = block(0, 40, 24, 24);
+  pts.insert(pts.end(), upper.begin(), upper.end());
+  const ClothTriangles tris = ClothTriangles::fromTopology(topologyFromCells(pts, d));
+  VecX x_old(3 * static_cast<Index>(pts.size()));
+  for (size_t k = 0; k < pts.size(); ++k) {
+    const bool up = pts[k][1] >= 40;
+    // The upper sheet is shifted in the plane so that its particles lie over triangle interiors.
+    x_old.segment<3>(3 * static_cast<Index>(k)) =
+        up ? Vec3((pts[k][1] - 40 + 0.3) * d, (pts[k][0] + 0.4) * d, 0.0045) : Vec3(pts[k][1] * d, pts[k][0] * d, 0.0);
+  }
+  for (const Real drop : {0.0048, 0.007}) {
+    VecX x = x_old;
+    std::mt19937 rng(11);
+    std::uniform_int_distribution<int> pick(2, 21);
+    for (int n = 0; n < 12; ++n) {  // interior particles of the upper sheet
+      const Index k = static_cast<Index>(24 * 24 + 24 * pick(rng) + pick(rng));
+      x[3 * k + 2] = 0.0045 - drop;
+    }
+    long brute = 0;
+    for (Index e = 0; e < tris.numEdges(); ++e) {
+      const auto& ed = tris.edges[static_cast<size_t>(e)];
+      for (Index t = 0; t < tris.numTriangles(); ++t) {
+        if (tris.triangleHasVertex(t, ed[0]) || tris.triangleHasVertex(t, ed[1])) continue;
+        const auto& c = tris.triangles[static_cast<size_t>(t)];
+        const Vec3 p = node3(x, ed[0]), q = node3(x, ed[1]), a = node3(x, c[0]), b = node3(x, c[1]), f = node3(x, c[2]);
+        const Vec3 lo = a.cwiseMin(b).cwiseMin(f), hi = a.cwiseMax(b).cwiseMax(f);
+        if ((p.cwiseMax(q).array() < lo.array()).any() || (p.cwiseMin(q).array() > hi.array()).any()) continue;
+        if (segmentTriangleIntersect(p, q, a, b, f)) ++brute;
+      }
+    }
+    ASSERT_GT(brute, 0) << "drop " << drop << ": nothing crosses, the test tests nothing";
+    SelfCollisionOptions o;
+    ASSERT_TRUE(o.proximity);
+    SelfCollisionPass pass(tris, {}, o);
+    VecX xs = x, vs = (x - x_old) / 1e-3;
+    pass.apply(x_old, xs, vs);
+    EXPECT_EQ(pass.lastStats().proximity_pairs, 0) << "drop " << drop;
+    EXPECT_EQ(pass.lastStats().crossings, brute) << "drop " << drop;
+    EXPECT_EQ(pass.lastStats().detections_from_proximity_build, drop < 0.005 ? 1 : 0) << "drop " << drop;
+    EXPECT_EQ(countIntersectingTrianglePairs(tris, xs), 0) << "drop " << drop;
+  }
+}
+
 TEST(SelfCollisionRollback, PassCapIsRespectedAndReported) {
   const RandomCrumple r = randomCrumple(16, 16, 0.01, 9);
   SelfCollisionOptions o;

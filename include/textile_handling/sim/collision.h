@@ -228,6 +228,9 @@ struct SelfCollisionStats {
   double proximity_detect_ms = 0;  ///< of which the detection of close pairs
   long candidate_list_builds = 0;  ///< broad-phase candidate lists built (v3: reused while valid)
   long proximity_list_builds = 0;  ///< proximity candidate lists built (v3: reused while valid)
+  /// v3: first detections of a pass that tested only the triangle pairs of the proximity build
+  /// (no two particles moved apart by more than its radius since; else the candidate pairs)
+  long detections_from_proximity_build = 0;
   double broad_ms = 0;        ///< building boxes and the hash
   double detect_ms = 0;       ///< candidate detection (parallel)
   double resolve_ms = 0;      ///< resolution (sequential, fixed order)
