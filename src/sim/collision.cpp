@@ -922,17 +922,9 @@ void SelfCollisionPass::buildProximityCache(const VecX& x_old, Real radius) {
 #pragma omp parallel if (m >= 4 * kParallelMin)
   {
 #pragma omp for schedule(static) nowait
-    for (Index t = 0; t < T; ++t) {
-      geom::Aabb b;
-      for (Index c : tris_.triangles[static_cast<size_t>(t)]) b.extend(node3(x_old, c));
-      tbox[static_cast<size_t>(t)] = b;
-    }
+    for (Index t = 0; t < T; ++t) tbox[static_cast<size_t>(t)] = triangleBox(t, x_old, x_old, 0.0, 0.0);
 #pragma omp for schedule(static)
-    for (Index e = 0; e < E; ++e) {
-      geom::Aabb b;
-      for (Index c : tris_.edges[static_cast<size_t>(e)]) b.extend(node3(x_old, c));
-      ebox[static_cast<size_t>(e)] = b;
-    }
+    for (Index e = 0; e < E; ++e) ebox[static_cast<size_t>(e)] = edgeBox(e, x_old, x_old);
     auto& ovt = lvt[static_cast<size_t>(threadId())].items;
     auto& oee = lee[static_cast<size_t>(threadId())].items;
     auto& otri = ltri[static_cast<size_t>(threadId())].items;
