@@ -14,6 +14,7 @@
 #include <map>
 #include <mutex>
 #include <thread>
+#include <tuple>
 #include <utility>
 
 #include "textile_handling/sim/particle_cloth_model.h"
@@ -324,6 +325,7 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
     if (plan.empty()) continue;
     const DrapeBuildReport r = buildPass(corner, plan);
     total.textile_id = r.textile_id;
+    total.generation = r.generation;
     total.planned += r.planned;
     total.to_simulate += r.to_simulate;
     total.already_done += r.already_done;
@@ -337,13 +339,26 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
   return total;
 }
 
+std::pair<std::int64_t, std::int64_t> DrapeDatabaseBuilder::targetTextile() {
+  if (config_.staged_textile_id == 0) {
+    const std::int64_t id = db_.ensureTextile(config_.textile, config_.material);
+    return {id, db_.textile(id).generation};
+  }
+  const auto staged = db_.stagedGeneration(config_.staged_textile_id);
+  if (!staged) throw NotFoundError("textile " + std::to_string(config_.staged_textile_id) + " has no staged generation");
+  if (!(staged->material == config_.material))
+    throw InvalidInputError("build: the material differs from the one of textile " +
+                            std::to_string(config_.staged_textile_id) + "'s staged generation");
+  return {staged->textile_id, staged->generation};
+}
+
 DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<PlannedHoldPoint>& plan) {
   const auto t0 = Clock::now();
   const DrapeBuildConfig& c = config_;
   DrapeBuildReport rep;
   rep.symmetry = symmetry_.name();
   rep.symmetric_grid = symmetric_grid_;
-  rep.textile_id = db_.ensureTextile(c.textile, c.material);
+  std::tie(rep.textile_id, rep.generation) = targetTextile();
   if (c.retry_failed) db_.resetFailed(rep.textile_id);
   const std::string params = parametersText(c, corner);
 
@@ -351,6 +366,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   for (const PlannedHoldPoint& h : plan) {
     NewSimulation r;
     r.textile_id = rep.textile_id;
+    r.generation = rep.generation;
     r.hold = h.position;
     r.lattice_i = h.lattice_i;
     r.lattice_j = h.lattice_j;

@@ -82,7 +82,7 @@ DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchI
         "SELECT v.id, v.view_angle_deg, v.projection, v.width_px, v.height_px, v.metres_per_pixel, v.top_margin_px, "
         "v.mask, s.id, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, t.name, t.symmetry, t.symmetry_cx, "
         "t.symmetry_cy FROM views v JOIN simulations s ON s.id = v.simulation_id JOIN textiles t ON t.id = s.textile_id "
-        "WHERE s.status = 'done' AND (?1 = '' OR t.name = ?1) AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) "
+        "WHERE s.status = 'done' AND s.generation = t.generation AND (?1 = '' OR t.name = ?1) AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) "
         "AND (?4 = 1 OR s.source = 'identity') ORDER BY s.id, v.view_angle_deg";
     SqliteStatement st = conn.prepare(sql);
     st.bind(1, options.textile)

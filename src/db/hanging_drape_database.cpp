@@ -11,104 +11,20 @@
 #include <thread>
 
 #include "textile_handling/db/blob_codec.h"
+#include "database_sql.h"
 
 namespace textile_handling {
 namespace db {
 
+using internal::fmt17;
+using internal::holdKey;
+using internal::kNow;
+
 namespace {
-
-constexpr const char* kNow = "strftime('%Y-%m-%dT%H:%M:%fZ','now')";
-
-const char* kSchemaV1 = R"SQL(
-CREATE TABLE schema_version (
-  version     INTEGER NOT NULL,
-  written_at  TEXT NOT NULL
-);
-CREATE TABLE textiles (
-  id             INTEGER PRIMARY KEY,
-  name           TEXT NOT NULL UNIQUE CHECK (length(name) > 0),
-  outline        TEXT NOT NULL,
-  mirrored       INTEGER NOT NULL DEFAULT 0 CHECK (mirrored IN (0, 1)),
-  mirror_x       REAL NOT NULL DEFAULT 0,
-  material_name  TEXT NOT NULL,
-  material_yaml  TEXT NOT NULL,
-  symmetry       TEXT NOT NULL CHECK (symmetry IN ('none', 'x', 'y', 'xy')),
-  symmetry_cx    REAL NOT NULL,
-  symmetry_cy    REAL NOT NULL,
-  created_at     TEXT NOT NULL
-);
-CREATE TABLE grasp_points (
-  textile_id  INTEGER NOT NULL REFERENCES textiles(id) ON DELETE CASCADE,
-  name        TEXT NOT NULL,
-  kind        TEXT NOT NULL CHECK (kind IN ('corner', 'grasp')),
-  x           REAL NOT NULL,
-  y           REAL NOT NULL,
-  PRIMARY KEY (textile_id, name)
-);
-CREATE TABLE simulations (
-  id                    INTEGER PRIMARY KEY,
-  textile_id            INTEGER NOT NULL REFERENCES textiles(id) ON DELETE CASCADE,
-  hold_x                REAL NOT NULL,
-  hold_y                REAL NOT NULL,
-  hold_key              TEXT NOT NULL,
-  lattice_i             INTEGER NOT NULL,
-  lattice_j             INTEGER NOT NULL,
-  source                TEXT NOT NULL CHECK (source IN ('identity', 'mirror_x', 'mirror_y', 'mirror_xy')),
-  source_simulation_id  INTEGER REFERENCES simulations(id) ON DELETE CASCADE,
-  model                 TEXT NOT NULL,
-  integrator            TEXT NOT NULL,
-  spacing               REAL NOT NULL CHECK (spacing > 0),
-  parameters            TEXT NOT NULL,
-  status                TEXT NOT NULL DEFAULT 'pending' CHECK (status IN ('pending', 'done', 'failed')),
-  failure_reason        TEXT,
-  rest_reached          INTEGER,
-  sim_time_s            REAL,
-  wall_time_s           REAL,
-  render_time_s         REAL,
-  steps                 INTEGER,
-  rejected_steps        INTEGER,
-  particles             INTEGER,
-  held_particle         INTEGER,
-  hanging_depth_m       REAL,
-  view_count            INTEGER NOT NULL DEFAULT 0,
-  positions             BLOB,
-  created_at            TEXT NOT NULL,
-  finished_at           TEXT,
-  CHECK ((status = 'done') = (positions IS NOT NULL)),
-  CHECK ((source = 'identity') = (source_simulation_id IS NULL)),
-  UNIQUE (textile_id, parameters, hold_key)
-);
-CREATE INDEX simulations_by_textile_status ON simulations(textile_id, status);
-CREATE TABLE views (
-  id                INTEGER PRIMARY KEY,
-  simulation_id     INTEGER NOT NULL REFERENCES simulations(id) ON DELETE CASCADE,
-  view_angle_deg    REAL NOT NULL,
-  projection        TEXT NOT NULL,
-  width_px          INTEGER NOT NULL CHECK (width_px > 0),
-  height_px         INTEGER NOT NULL CHECK (height_px > 0),
-  metres_per_pixel  REAL NOT NULL CHECK (metres_per_pixel > 0),
-  top_margin_px     REAL NOT NULL,
-  area              INTEGER NOT NULL,
-  mask              BLOB NOT NULL,
-  UNIQUE (simulation_id, view_angle_deg)
-);
-)SQL";
-
-std::string holdKey(const Vec2& p) {
-  return std::to_string(std::llround(p.x() * 1e6)) + "," + std::to_string(std::llround(p.y() * 1e6));
-}
-
-std::string fmt17(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
 
 bool finite(double v) { return std::isfinite(v); }
 
 }  // namespace
-
-const char* schemaV1Sql() { return kSchemaV1; }
 
 std::string toString(SimulationStatus s) {
   switch (s) {
@@ -147,27 +63,6 @@ std::vector<Vec2> outlineFromText(const std::string& text) {
   return out;
 }
 
-// ---- migrations -------------------------------------------------------------------------------
-
-void migrateSchemaStep(SqliteConnection& conn, int from_version) {
-  if (from_version == 0) {
-    // v0 (the prototype layout) stored views without their foreground area; v1 keeps the area so
-    // that statistics and loaders need not decode masks. Fill it from the mask blobs.
-    conn.exec("ALTER TABLE views ADD COLUMN area INTEGER NOT NULL DEFAULT 0");
-    SqliteStatement sel = conn.prepare("SELECT id, mask FROM views");
-    SqliteStatement upd = conn.prepare("UPDATE views SET area = ? WHERE id = ?");
-    while (sel.step()) {
-      const std::int64_t id = sel.getInt(0);
-      const vision::BitMask m =
-          decodeMask(sel.blobData(1), static_cast<std::size_t>(sel.blobSize(1)), "view " + std::to_string(id));
-      upd.bind(1, static_cast<std::int64_t>(m.count())).bind(2, id);
-      upd.run();
-      upd.reset();
-    }
-    return;
-  }
-  throw SchemaVersionError("no migration from schema version " + std::to_string(from_version));
-}
 
 // ---- open -------------------------------------------------------------------------------------
 
@@ -183,100 +78,6 @@ HangingDrapeDatabase::HangingDrapeDatabase(const std::string& path, const Databa
 
 HangingDrapeDatabase::~HangingDrapeDatabase() = default;
 
-namespace {
-
-// What an opened file is, read without writing anything.
-struct FileState {
-  std::int64_t objects = 0;   // schema objects other than SQLite's own
-  std::int64_t version = -1;  // schema_version.version (objects > 0)
-};
-
-// Reads the file's state and refuses files that are not (or not yet) drape databases this program can
-// use. Only reads: a refused file is left byte for byte as it was.
-FileState inspectFile(const SqliteConnection& conn, const std::string& path, int supported) {
-  FileState f;
-  f.objects = conn.queryInt("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");  // also checks "not a database"
-  const std::int64_t app_id = conn.queryInt("PRAGMA application_id");
-  if (app_id != 0 && app_id != HangingDrapeDatabase::kApplicationId)
-    throw SchemaVersionError("'" + path + "' is an SQLite file of another application (application_id " +
-                             std::to_string(app_id) + "), not a drape database");
-  if (f.objects == 0) return f;
-  if (conn.queryInt("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'") == 0)
-    throw SchemaVersionError("'" + path + "' has no schema_version table: not a drape database");
-  if (conn.queryInt("SELECT count(*) FROM schema_version") != 1)
-    throw SchemaVersionError("'" + path + "' has a damaged schema_version table (expected exactly one row)");
-  f.version = conn.queryInt("SELECT version FROM schema_version");
-  if (f.version > supported)
-    throw SchemaVersionError("'" + path + "' has schema version " + std::to_string(f.version) +
-                             ", newer than this program supports (" + std::to_string(supported) +
-                             "); use a newer textile_handling");
-  if (f.version < 0) throw SchemaVersionError("'" + path + "' has an invalid schema version " + std::to_string(f.version));
-  return f;
-}
-
-}  // namespace
-
-void HangingDrapeDatabase::initialiseSchema() {
-  // 1. Look before writing: foreign, damaged and newer files are refused untouched (switching the
-  //    journal to WAL already rewrites the file header, so it must not happen before this check).
-  FileState f = inspectFile(conn_, path_, kSchemaVersion);
-  if (read_only_) {
-    if (f.objects == 0) throw SchemaVersionError("'" + path_ + "' is empty, not a drape database");
-    if (f.version != kSchemaVersion)
-      throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(f.version) +
-                               " and needs a migration to " + std::to_string(kSchemaVersion) + "; open it read-write");
-    return;
-  }
-  // 2. A drape database (or an empty file) opened for writing: WAL, so that readers never block the
-  //    writer and a killed writer leaves a consistent file. With WAL, synchronous = NORMAL keeps every
-  //    committed transaction across a process crash (only a power loss can drop the last commits).
-  //    Switching to WAL needs an exclusive lock, and SQLite answers SQLITE_BUSY at once (without the busy
-  //    handler) when another connection is mid-transaction, e.g. another process creating the schema of
-  //    the same new file. So retry for up to the busy timeout.
-  std::string mode;
-  for (const auto start = std::chrono::steady_clock::now();;) {
-    try {
-      mode = conn_.queryText("PRAGMA journal_mode = WAL");
-      break;
-    } catch (const SqliteError& e) {
-      const int primary = e.code() & 0xff;
-      const auto waited = std::chrono::steady_clock::now() - start;
-      if ((primary != SQLITE_BUSY && primary != SQLITE_LOCKED) ||
-          waited > std::chrono::milliseconds(busy_timeout_ms_))
-        throw;
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    }
-  }
-  if (mode != "wal") throw SqliteError("cannot switch '" + path_ + "' to WAL mode (got '" + mode + "')", SQLITE_ERROR);
-  conn_.exec("PRAGMA synchronous = NORMAL");
-  if (f.objects > 0 && f.version == kSchemaVersion) return;
-  // 3. Create or migrate under the write lock. Another process may have created or migrated the file
-  //    between the look above and the lock, so look again inside the transaction.
-  try {
-    SqliteTransaction tx(conn_);
-    f = inspectFile(conn_, path_, kSchemaVersion);
-    if (f.objects == 0) {
-      conn_.exec(kSchemaV1);
-      conn_.exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
-                 kNow + ")");
-      conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
-      tx.commit();
-      return;
-    }
-    for (int v = static_cast<int>(f.version); v < kSchemaVersion; ++v) {
-      migrateSchemaStep(conn_, v);
-      conn_.exec("UPDATE schema_version SET version = " + std::to_string(v + 1) + ", written_at = " + kNow);
-    }
-    conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
-    tx.commit();
-  } catch (const SchemaVersionError&) {
-    throw;
-  } catch (const std::exception& e) {
-    if (f.objects == 0) throw;  // creating the schema failed (I/O, locked): not a migration problem
-    throw SchemaVersionError("migrating '" + path_ + "' from schema version " + std::to_string(f.version) + " to " +
-                             std::to_string(kSchemaVersion) + " failed (file left unchanged): " + e.what());
-  }
-}
 
 int HangingDrapeDatabase::schemaVersion() const {
   std::lock_guard<std::mutex> lock(mutex_);
@@ -314,6 +115,7 @@ TextileRecord readTextileRow(SqliteStatement& st, const SqliteConnection& conn) 
   r.symmetry.cx = st.getDouble(8);
   r.symmetry.cy = st.getDouble(9);
   r.created_at = st.getText(10);
+  r.generation = st.getInt(11);
   SqliteStatement gp = conn.prepare("SELECT name, kind, x, y FROM grasp_points WHERE textile_id = ? ORDER BY rowid");
   gp.bind(1, r.id);
   while (gp.step()) {
@@ -328,7 +130,7 @@ TextileRecord readTextileRow(SqliteStatement& st, const SqliteConnection& conn) 
 
 constexpr const char* kTextileColumns =
     "SELECT id, name, outline, mirrored, mirror_x, material_name, material_yaml, symmetry, symmetry_cx, symmetry_cy, "
-    "created_at FROM textiles";
+    "created_at, generation FROM textiles";
 
 bool sameTextile(const TextileRecord& r, const TextileOutline& o, const Material& m) {
   if (r.outline.outline.size() != o.outline.size() || r.outline.mirrored != o.mirrored) return false;
@@ -429,32 +231,6 @@ std::int64_t HangingDrapeDatabase::ensureTextile(const TextileOutline& outline, 
   return id;
 }
 
-void HangingDrapeDatabase::replaceTextileEntries(std::int64_t textile_id, const Material& material) {
-  requireWritable("replaceTextileEntries");
-  std::string err;
-  if (!material.validate(&err)) throw InvalidInputError("material: " + err);
-  std::lock_guard<std::mutex> lock(mutex_);
-  SqliteTransaction tx(conn_);
-  {
-    SqliteStatement st = conn_.prepare("SELECT count(*) FROM textiles WHERE id = ?");
-    st.bind(1, textile_id);
-    st.step();
-    if (st.getInt(0) == 0) throw NotFoundError("no textile with id " + std::to_string(textile_id));
-  }
-  SqliteStatement up = conn_.prepare("UPDATE textiles SET material_name = ?, material_yaml = ? WHERE id = ?");
-  up.bind(1, material.name).bind(2, materialToYaml(material)).bind(3, textile_id);
-  up.run();
-  // Derived rows first (they reference their sources); views go by ON DELETE CASCADE.
-  SqliteStatement del_derived =
-      conn_.prepare("DELETE FROM simulations WHERE textile_id = ? AND source_simulation_id IS NOT NULL");
-  del_derived.bind(1, textile_id);
-  del_derived.run();
-  SqliteStatement del = conn_.prepare("DELETE FROM simulations WHERE textile_id = ?");
-  del.bind(1, textile_id);
-  del.run();
-  tx.commit();
-}
-
 TextileRecord HangingDrapeDatabase::textile(std::int64_t id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   SqliteStatement st = conn_.prepare(std::string(kTextileColumns) + " WHERE id = ?");
@@ -480,7 +256,7 @@ std::vector<TextileRecord> HangingDrapeDatabase::textiles() const {
 
 namespace {
 constexpr const char* kSimulationColumns =
-    "SELECT s.id, s.textile_id, t.name, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, "
+    "SELECT s.id, s.textile_id, t.name, s.generation, s.generation = t.generation, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, "
     "s.source_simulation_id, s.model, s.integrator, s.spacing, s.parameters, s.status, s.failure_reason, "
     "s.rest_reached, s.sim_time_s, s.wall_time_s, s.render_time_s, s.hanging_depth_m, s.steps, s.rejected_steps, "
     "s.particles, s.held_particle, s.view_count, s.created_at, s.finished_at "
@@ -492,33 +268,35 @@ SimulationRecord HangingDrapeDatabase::readSimulation(SqliteStatement& st) const
   r.id = st.getInt(0);
   r.textile_id = st.getInt(1);
   r.textile_name = st.getText(2);
-  r.hold = Vec2(st.getDouble(3), st.getDouble(4));
-  r.lattice_i = static_cast<int>(st.getInt(5));
-  r.lattice_j = static_cast<int>(st.getInt(6));
+  r.generation = st.getInt(3);
+  r.active = st.getInt(4) != 0;
+  r.hold = Vec2(st.getDouble(5), st.getDouble(6));
+  r.lattice_i = static_cast<int>(st.getInt(7));
+  r.lattice_j = static_cast<int>(st.getInt(8));
   try {
-    r.source = mirrorKindFromString(st.getText(7));
+    r.source = mirrorKindFromString(st.getText(9));
   } catch (const std::invalid_argument& e) {
     throw BlobFormatError("simulation " + std::to_string(r.id) + ": " + e.what());
   }
-  r.source_simulation_id = st.isNull(8) ? 0 : st.getInt(8);
-  r.model = st.getText(9);
-  r.integrator = st.getText(10);
-  r.spacing = st.getDouble(11);
-  r.parameters = st.getText(12);
-  r.status = simulationStatusFromString(st.getText(13));
-  r.failure_reason = st.getText(14);
-  r.rest_reached = !st.isNull(15) && st.getInt(15) != 0;
-  r.sim_time_s = st.getDouble(16);
-  r.wall_time_s = st.getDouble(17);
-  r.render_time_s = st.getDouble(18);
-  r.hanging_depth_m = st.getDouble(19);
-  r.steps = static_cast<long>(st.getInt(20));
-  r.rejected_steps = static_cast<long>(st.getInt(21));
-  r.particles = static_cast<int>(st.getInt(22));
-  r.held_particle = st.isNull(23) ? -1 : static_cast<int>(st.getInt(23));
-  r.view_count = static_cast<int>(st.getInt(24));
-  r.created_at = st.getText(25);
-  r.finished_at = st.getText(26);
+  r.source_simulation_id = st.isNull(10) ? 0 : st.getInt(10);
+  r.model = st.getText(11);
+  r.integrator = st.getText(12);
+  r.spacing = st.getDouble(13);
+  r.parameters = st.getText(14);
+  r.status = simulationStatusFromString(st.getText(15));
+  r.failure_reason = st.getText(16);
+  r.rest_reached = !st.isNull(17) && st.getInt(17) != 0;
+  r.sim_time_s = st.getDouble(18);
+  r.wall_time_s = st.getDouble(19);
+  r.render_time_s = st.getDouble(20);
+  r.hanging_depth_m = st.getDouble(21);
+  r.steps = static_cast<long>(st.getInt(22));
+  r.rejected_steps = static_cast<long>(st.getInt(23));
+  r.particles = static_cast<int>(st.getInt(24));
+  r.held_particle = st.isNull(25) ? -1 : static_cast<int>(st.getInt(25));
+  r.view_count = static_cast<int>(st.getInt(26));
+  r.created_at = st.getText(27);
+  r.finished_at = st.getText(28);
   return r;
 }
 
@@ -557,23 +335,41 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
         if (rows[static_cast<std::size_t>(r.source_index)].textile_id != r.textile_id)
           throw InvalidInputError(what + "derived row and its source belong to different textiles");
       } else {
-        SqliteStatement st = conn_.prepare("SELECT textile_id, source FROM simulations WHERE id = ?");
+        SqliteStatement st = conn_.prepare("SELECT textile_id, source, generation FROM simulations WHERE id = ?");
         st.bind(1, r.source_simulation_id);
         if (!st.step()) throw NotFoundError(what + "no source simulation with id " + std::to_string(r.source_simulation_id));
-        if (st.getInt(0) != r.textile_id || st.getText(1) != "identity")
-          throw InvalidInputError(what + "source simulation must be a simulated row of the same textile");
+        if (st.getInt(0) != r.textile_id || st.getText(1) != "identity" || st.getInt(2) != r.generation)
+          throw InvalidInputError(what + "source simulation must be a simulated row of the same textile and generation");
       }
     }
   }
   SqliteTransaction tx(conn_);
+  // Rows go into the textile's active generation or its staged one; checked under the write lock, so a
+  // promotion cannot slip in between.
+  {
+    SqliteStatement gen = conn_.prepare(
+        "SELECT t.generation, g.generation FROM textiles t LEFT JOIN staged_generations g ON g.textile_id = t.id "
+        "WHERE t.id = ?");
+    std::set<std::pair<std::int64_t, std::int64_t>> checked;
+    for (const NewSimulation& r : rows) {
+      if (!checked.insert({r.textile_id, r.generation}).second) continue;
+      gen.bind(1, r.textile_id);
+      if (!gen.step()) throw NotFoundError("no textile with id " + std::to_string(r.textile_id));
+      if (r.generation != gen.getInt(0) && (gen.isNull(1) || r.generation != gen.getInt(1)))
+        throw InvalidInputError("generation " + std::to_string(r.generation) + " of textile " +
+                                std::to_string(r.textile_id) + " is neither its active nor its staged generation");
+      gen.reset();
+    }
+  }
   SqliteStatement ins = conn_.prepare(
       std::string("INSERT INTO simulations(textile_id, hold_x, hold_y, hold_key, lattice_i, lattice_j, source, "
-                  "source_simulation_id, model, integrator, spacing, parameters, created_at) "
-                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ") +
+                  "source_simulation_id, model, integrator, spacing, parameters, generation, created_at) "
+                  "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ") +
       kNow +
-      ") ON CONFLICT (textile_id, parameters, hold_key) DO UPDATE SET lattice_i = excluded.lattice_i, "
+      ") ON CONFLICT (textile_id, generation, parameters, hold_key) DO UPDATE SET lattice_i = excluded.lattice_i, "
       "lattice_j = excluded.lattice_j");
-  SqliteStatement sel = conn_.prepare("SELECT id FROM simulations WHERE textile_id = ? AND parameters = ? AND hold_key = ?");
+  SqliteStatement sel = conn_.prepare(
+      "SELECT id FROM simulations WHERE textile_id = ? AND parameters = ? AND hold_key = ? AND generation = ?");
   std::vector<std::int64_t> ids;
   for (const NewSimulation& r : rows) {
     const std::string key = holdKey(r.hold);
@@ -583,10 +379,10 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
       ins.bindNull(8);
     else
       ins.bind(8, r.source_index >= 0 ? ids[static_cast<std::size_t>(r.source_index)] : r.source_simulation_id);
-    ins.bind(9, r.model).bind(10, r.integrator).bind(11, r.spacing).bind(12, r.parameters);
+    ins.bind(9, r.model).bind(10, r.integrator).bind(11, r.spacing).bind(12, r.parameters).bind(13, r.generation);
     ins.run();
     ins.reset();
-    sel.bind(1, r.textile_id).bind(2, r.parameters).bind(3, key);
+    sel.bind(1, r.textile_id).bind(2, r.parameters).bind(3, key).bind(4, r.generation);
     if (!sel.step()) throw SqliteError("planned simulation row vanished", SQLITE_INTERNAL);
     ids.push_back(sel.getInt(0));
     sel.reset();
@@ -800,10 +596,14 @@ DatabaseCounts HangingDrapeDatabase::counts(std::int64_t textile_id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   DatabaseCounts c;
   c.textiles = conn_.queryInt("SELECT count(*) FROM textiles");
+  // Active rows (what readers see) and staged rows separately.
   SqliteStatement st = conn_.prepare(
-      "SELECT count(*), coalesce(sum(status = 'pending'), 0), coalesce(sum(status = 'done'), 0), "
-      "coalesce(sum(status = 'failed'), 0), coalesce(sum(source != 'identity'), 0) FROM simulations "
-      "WHERE ?1 = 0 OR textile_id = ?1");
+      "SELECT coalesce(sum(a), 0), coalesce(sum(a AND status = 'pending'), 0), coalesce(sum(a AND status = 'done'), 0), "
+      "coalesce(sum(a AND status = 'failed'), 0), coalesce(sum(a AND source != 'identity'), 0), "
+      "coalesce(sum(NOT a), 0), coalesce(sum(NOT a AND status = 'done'), 0), "
+      "coalesce(sum(NOT a AND status = 'failed'), 0) "
+      "FROM (SELECT s.status, s.source, s.generation = t.generation AS a FROM simulations s "
+      "JOIN textiles t ON t.id = s.textile_id WHERE ?1 = 0 OR s.textile_id = ?1)");
   st.bind(1, textile_id);
   st.step();
   c.simulations = st.getInt(0);
@@ -811,8 +611,12 @@ DatabaseCounts HangingDrapeDatabase::counts(std::int64_t textile_id) const {
   c.done = st.getInt(2);
   c.failed = st.getInt(3);
   c.derived = st.getInt(4);
+  c.staged_simulations = st.getInt(5);
+  c.staged_done = st.getInt(6);
+  c.staged_failed = st.getInt(7);
   SqliteStatement vs = conn_.prepare(
-      "SELECT count(*) FROM views v JOIN simulations s ON s.id = v.simulation_id WHERE ?1 = 0 OR s.textile_id = ?1");
+      "SELECT count(*) FROM views v JOIN simulations s ON s.id = v.simulation_id JOIN textiles t ON t.id = s.textile_id "
+      "WHERE (?1 = 0 OR s.textile_id = ?1) AND s.generation = t.generation");
   vs.bind(1, textile_id);
   vs.step();
   c.views = vs.getInt(0);
@@ -822,9 +626,9 @@ DatabaseCounts HangingDrapeDatabase::counts(std::int64_t textile_id) const {
 std::vector<std::string> HangingDrapeDatabase::consistencyProblems() const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::string> out;
-  auto collect = [&](const std::string& sql, const std::string& what) {
+  auto collect = [&](const std::string& sql, const std::string& what, const char* id_of = "simulation") {
     SqliteStatement st = conn_.prepare(sql);
-    while (st.step()) out.push_back(what + " (simulation " + std::to_string(st.getInt(0)) + ")");
+    while (st.step()) out.push_back(what + " (" + id_of + " " + std::to_string(st.getInt(0)) + ")");
   };
   collect(
       "SELECT s.id FROM simulations s WHERE s.status = 'done' AND (s.positions IS NULL OR s.view_count <= 0 OR "
@@ -844,6 +648,19 @@ std::vector<std::string> HangingDrapeDatabase::consistencyProblems() const {
       "derived simulation done before its source");
   collect("SELECT v.simulation_id FROM views v LEFT JOIN simulations s ON s.id = v.simulation_id WHERE s.id IS NULL",
           "orphan view");
+  collect(
+      "SELECT s.id FROM simulations s JOIN textiles t ON t.id = s.textile_id LEFT JOIN staged_generations g "
+      "ON g.textile_id = s.textile_id WHERE s.generation != t.generation AND (g.generation IS NULL OR "
+      "s.generation != g.generation)",
+      "simulation of a generation that is neither active nor staged");
+  collect(
+      "SELECT s.id FROM simulations s JOIN simulations src ON src.id = s.source_simulation_id "
+      "WHERE s.generation != src.generation",
+      "derived simulation whose source is of another generation");
+  collect(
+      "SELECT g.textile_id FROM staged_generations g JOIN textiles t ON t.id = g.textile_id "
+      "WHERE g.generation <= t.generation",
+      "staged generation not above the active one", "textile");
   SqliteStatement fk = conn_.prepare("PRAGMA foreign_key_check");
   while (fk.step()) out.push_back("foreign key violation in table " + fk.getText(0));
   return out;

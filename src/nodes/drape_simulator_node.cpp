@@ -107,6 +107,9 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   ro.build.hold_height = hold_position_.z();
   pnh.param("database_self_collision", ro.build.self_collision, false);
   ro.max_hold_points = positiveIntParam(pnh, "max_hold_points", ro.max_hold_points);
+  pnh.param("max_failed_fraction", ro.max_failed_fraction, ro.max_failed_fraction);
+  if (!(ro.max_failed_fraction >= 0 && ro.max_failed_fraction <= 1))
+    throw std::runtime_error("parameter ~max_failed_fraction must be in [0, 1]");
   std::vector<std::string> presets;
   pnh.param("preset_textiles", presets, presets);
   bool build_presets = false;
@@ -132,6 +135,14 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
     } catch (const std::exception& e) {
       throw std::runtime_error("parameter ~preset_textiles: '" + name + "': " + e.what());
     }
+  }
+  try {
+    const int resumed = registry_->resumeStagedBuilds();
+    if (resumed > 0)
+      ROS_INFO_NAMED("drape_simulator", "resuming %d interrupted resimulation(s); the old entries stay active meanwhile",
+                     resumed);
+  } catch (const std::exception& e) {
+    ROS_ERROR_NAMED("drape_simulator", "cannot resume interrupted resimulations: %s", e.what());
   }
   publishChanged(0);
 
@@ -276,6 +287,10 @@ bool DrapeSimulatorNode::listTextiles(ListTextiles::Request&, ListTextiles::Resp
       info.simulations_pending = t.counts.pending;
       info.simulations_failed = t.counts.failed;
       info.views = t.counts.views;
+      info.generation = t.record.generation;
+      info.staged_simulations = t.counts.staged_simulations;
+      info.staged_done = t.counts.staged_done;
+      info.staged_failed = t.counts.staged_failed;
       res.textiles.push_back(info);
     }
   } catch (const std::exception& e) {

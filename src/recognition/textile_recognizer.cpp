@@ -129,7 +129,8 @@ std::shared_ptr<const LoadedIndex> makeLoaded(db::DrapeMatchIndex&& index) {
 std::vector<double> doneSpacings(const db::HangingDrapeDatabase& db, std::int64_t textile_id) {
   return db.withConnection([&](db::SqliteConnection& c) {
     db::SqliteStatement st =
-        c.prepare("SELECT DISTINCT spacing FROM simulations WHERE textile_id = ?1 AND status = 'done' ORDER BY spacing");
+        c.prepare("SELECT DISTINCT s.spacing FROM simulations s JOIN textiles t ON t.id = s.textile_id "
+                  "WHERE s.textile_id = ?1 AND s.status = 'done' AND s.generation = t.generation ORDER BY s.spacing");
     st.bind(1, textile_id);
     std::vector<double> out;
     while (st.step()) out.push_back(st.getDouble(0));
@@ -137,17 +138,19 @@ std::vector<double> doneSpacings(const db::HangingDrapeDatabase& db, std::int64_
   });
 }
 
-// Everything a reload depends on, as text: textiles, finished simulations (count, id sum and maximum,
-// latest finish time: simulation ids are reused after a resimulation deletes rows), views.
+// Everything a reload depends on, as text: textiles and their active generations, the finished
+// simulations of those generations (count, id sum and maximum, latest finish time) and their views.
+// Rows of staged generations (a resimulation in progress) are invisible to readers and left out.
 std::string databaseFingerprint(const db::HangingDrapeDatabase& db) {
   return db.withConnection([](db::SqliteConnection& c) {
     db::SqliteStatement st = c.prepare(
-        "SELECT (SELECT count(*) FROM textiles), (SELECT COALESCE(max(id), 0) FROM textiles), count(*), "
-        "COALESCE(sum(id), 0), COALESCE(max(id), 0), COALESCE(max(finished_at), ''), (SELECT count(*) FROM views), "
-        "(SELECT COALESCE(max(id), 0) FROM views) FROM simulations WHERE status = 'done'");
+        "SELECT (SELECT count(*) FROM textiles), (SELECT COALESCE(max(id), 0) FROM textiles), "
+        "(SELECT COALESCE(sum(generation), 0) FROM textiles), count(*), COALESCE(sum(s.id), 0), "
+        "COALESCE(max(s.id), 0), COALESCE(max(s.finished_at), ''), COALESCE(sum(s.view_count), 0) "
+        "FROM simulations s JOIN textiles t ON t.id = s.textile_id WHERE s.status = 'done' AND s.generation = t.generation");
     std::string out;
     if (st.step())
-      for (int k = 0; k < 8; ++k) out += (k == 5 ? st.getText(k) : std::to_string(st.getInt(k))) + "|";
+      for (int k = 0; k < 8; ++k) out += (k == 6 ? st.getText(k) : std::to_string(st.getInt(k))) + "|";
     return out;
   });
 }

@@ -1,5 +1,6 @@
 #include "textile_handling/registry/textile_registry.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -85,8 +86,7 @@ Material TextileRegistry::resolveMaterial(const std::string& name, const std::st
 
 int TextileRegistry::planHoldPoints(const db::DrapeBuildConfig& config) {
   // The builder validates the configuration (scene of the first hold point) and plans the rows; it
-  // writes nothing until build().
-  std::lock_guard<std::mutex> lock(db_mutex_);
+  // neither reads nor writes the database until build().
   db::DrapeDatabaseBuilder planner(*db_, config);
   const int n = static_cast<int>(planner.plan().size());
   if (n > options_.max_hold_points)
@@ -115,10 +115,7 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   if (!validateTextileOutline(outline, &error)) throw InvalidInputError("outline: " + error);
   const Material material = resolveMaterial(r.material_name, r.material_yaml);
   if (!material.validate(&error)) throw InvalidInputError("material: " + error);
-  {
-    std::lock_guard<std::mutex> lock(db_mutex_);
-    if (db_->findTextile(r.name)) throw InvalidInputError("a textile named '" + r.name + "' already exists");
-  }
+  if (db_->findTextile(r.name)) throw InvalidInputError("a textile named '" + r.name + "' already exists");
   Job job;
   job.textile_name = r.name;
   job.config = options_.build;
@@ -127,10 +124,7 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   if (r.hold_point_spacing > 0) job.config.lattice_spacing = r.hold_point_spacing;
   if (!r.model.empty()) job.config.model = checkedModel(r.model);
   const int planned = planHoldPoints(job.config);  // throws before anything is stored
-  {
-    std::lock_guard<std::mutex> lock(db_mutex_);
-    job.textile_id = db_->addTextile(outline, material);
-  }
+  job.textile_id = db_->addTextile(outline, material);  // refuses a name taken meanwhile
   if (on_changed_) on_changed_(job.textile_id);
   QueuedBuild q = enqueue(std::move(job));
   q.hold_points = planned;
@@ -139,11 +133,7 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
 
 QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
   checkSpacing(r.spacing, "spacing_m");
-  db::TextileRecord rec;
-  {
-    std::lock_guard<std::mutex> lock(db_mutex_);
-    rec = db_->textile(r.textile_id);  // NotFoundError for an unknown id
-  }
+  const db::TextileRecord rec = db_->textile(r.textile_id);  // NotFoundError for an unknown id
   Job job;
   job.textile_id = rec.id;
   job.textile_name = rec.outline.name;
@@ -155,19 +145,38 @@ QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
   if (!job.config.material.validate(&error)) throw InvalidInputError("material: " + error);
   if (r.spacing > 0) job.config.spacing = r.spacing;
   if (!r.model.empty()) job.config.model = checkedModel(r.model);
-  job.replace = true;
+  job.staged = true;
+  job.stage_new = true;
+  job.request_spacing = r.spacing;
+  job.request_model = r.model;
   const int planned = planHoldPoints(job.config);
   QueuedBuild q = enqueue(std::move(job));
   q.hold_points = planned;
   return q;
 }
 
-QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
-  db::TextileRecord rec;
-  {
-    std::lock_guard<std::mutex> lock(db_mutex_);
-    rec = db_->textile(textile_id);
+int TextileRegistry::resumeStagedBuilds() {
+  int queued = 0;
+  for (const db::StagedGeneration& g : db_->stagedGenerations()) {
+    const db::TextileRecord rec = db_->textile(g.textile_id);
+    Job job;
+    job.textile_id = rec.id;
+    job.textile_name = rec.outline.name;
+    job.config = options_.build;
+    job.config.textile = rec.outline;
+    job.config.material = g.material;
+    if (g.spacing > 0) job.config.spacing = g.spacing;
+    if (!g.model.empty()) job.config.model = checkedModel(g.model);
+    job.staged = true;
+    planHoldPoints(job.config);
+    enqueue(std::move(job));
+    ++queued;
   }
+  return queued;
+}
+
+QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
+  const db::TextileRecord rec = db_->textile(textile_id);
   Job job;
   job.textile_id = rec.id;
   job.textile_name = rec.outline.name;
@@ -181,7 +190,6 @@ QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
 }
 
 std::vector<TextileSummary> TextileRegistry::list() const {
-  std::lock_guard<std::mutex> lock(db_mutex_);
   std::vector<TextileSummary> out;
   for (auto& rec : db_->textiles()) {
     TextileSummary s;
@@ -199,7 +207,7 @@ std::int64_t TextileRegistry::ensurePreset(const std::string& name) {
   } catch (const std::exception& e) {
     throw InvalidInputError(e.what());
   }
-  std::lock_guard<std::mutex> lock(db_mutex_);
+  // A stored preset keeps its material (a resimulation may have changed it).
   if (const auto rec = db_->findTextile(name)) return rec->id;
   return db_->addTextile(outline, options_.build.material);
 }
@@ -212,9 +220,9 @@ void TextileRegistry::setDefaultMaterial(const Material& m) {
 }
 
 StoredRestShape TextileRegistry::restShape(std::int64_t textile_id, const Vec2& hold) const {
-  std::lock_guard<std::mutex> lock(db_mutex_);
   const db::TextileRecord rec = db_->textile(textile_id);
-  const auto done = db_->simulations(textile_id, db::SimulationStatus::kDone);
+  auto done = db_->simulations(textile_id, db::SimulationStatus::kDone);
+  done.erase(std::remove_if(done.begin(), done.end(), [](const db::SimulationRecord& s) { return !s.active; }), done.end());
   if (done.empty()) throw db::NotFoundError("textile " + std::to_string(textile_id) + " has no finished simulation yet");
   const db::SimulationRecord* best = &done.front();
   for (const auto& s : done)
@@ -303,10 +311,9 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
   try {
     // The worker's own connection: SQLite connections are not shared between threads here.
     db::HangingDrapeDatabase wdb(path_);
-    if (job.replace) {
-      wdb.replaceTextileEntries(job.textile_id, job.config.material);
-      if (on_changed_) on_changed_(job.textile_id);
-    }
+    if (job.stage_new)
+      wdb.stageGeneration(job.textile_id, job.config.material, job.request_spacing, job.request_model);
+    if (job.staged) job.config.staged_textile_id = job.textile_id;
     job.config.should_stop = [this] { return stop_requested_.load(); };
     job.config.on_progress = [&](int done, int total) {
       BuildProgressEvent p = e;
@@ -326,13 +333,36 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
     e.message = std::to_string(rep.simulated_now) + " simulated, " + std::to_string(rep.derived_now) +
                 " mirrored, " + std::to_string(rep.failed_now) + " failed";
     if (!rep.failures.empty()) e.message += "; first failure: " + rep.failures.front();
+    if (job.staged && !stop_requested_) {
+      std::string outcome;
+      const bool promoted = promoteIfComplete(wdb, job, rep, &outcome);
+      e.state = promoted ? "done" : "failed";
+      e.message += "; " + outcome;
+    }
   } catch (const std::exception& ex) {
     e.state = "failed";
     e.message = ex.what();
     e.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
   }
   emit(e);
+  // A staged build changes nothing readers see until its promotion (which announces itself).
+  if (!job.staged && on_changed_) on_changed_(job.textile_id);
+}
+
+bool TextileRegistry::promoteIfComplete(db::HangingDrapeDatabase& wdb, const Job& job, const db::DrapeBuildReport& rep,
+                                        std::string* outcome) {
+  try {
+    const db::PromotionReport p = wdb.promoteStagedGeneration(
+        job.textile_id, rep.generation, db::DrapeDatabaseBuilder::parameterTexts(job.config), options_.max_failed_fraction);
+    *outcome = "generation " + std::to_string(p.generation) + " active (" + std::to_string(p.done) + " done, " +
+               std::to_string(p.failed) + " failed; " + std::to_string(p.removed_simulations) +
+               " old simulations removed)";
+  } catch (const db::InvalidInputError& ex) {
+    *outcome = std::string("old entries kept: ") + ex.what();
+    return false;
+  }
   if (on_changed_) on_changed_(job.textile_id);
+  return true;
 }
 
 }  // namespace registry

@@ -16,6 +16,7 @@
 #include <thread>
 
 #include "../test_support.h"
+#include "schema_history.h"
 #include "textile_handling/db/blob_codec.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_index.h"
@@ -84,10 +85,10 @@ void rawExec(const std::string& path, const std::string& sql) {
 
 }  // namespace
 
-TEST(HangingDrapeDatabase, CreatesSchemaVersionOneInWalMode) {
+TEST(HangingDrapeDatabase, CreatesTheCurrentSchemaVersionInWalMode) {
   TempDatabase t("create");
   HangingDrapeDatabase db(t.path());
-  EXPECT_EQ(db.schemaVersion(), 1);
+  EXPECT_EQ(db.schemaVersion(), HangingDrapeDatabase::kSchemaVersion);
   EXPECT_EQ(db.integrityCheck(), "ok");
   db.withConnection([](SqliteConnection& c) {
     EXPECT_EQ(c.queryText("PRAGMA journal_mode"), "wal");
@@ -361,12 +362,7 @@ TEST(HangingDrapeDatabase, NewerSchemaIsRefusedAndLeftUntouched) {
 
 TEST(HangingDrapeDatabase, VersionZeroFileIsMigrated) {
   TempDatabase t("v0");
-  // The v0 layout: v1 without views.area.
-  std::string v0 = schemaV1Sql();
-  const std::string area_line = "  area              INTEGER NOT NULL,\n";
-  const auto pos = v0.find(area_line);
-  ASSERT_NE(pos, std::string::npos);
-  v0.erase(pos, area_line.size());
+  const std::string v0 = schema_history::schemaV0Sql();
   const vision::BitMask mask = makeResult(1).views[0].mask;
   const auto blob = encodeMask(mask);
   std::string hex;
@@ -391,7 +387,7 @@ TEST(HangingDrapeDatabase, VersionZeroFileIsMigrated) {
   }
   {
     HangingDrapeDatabase db(t.path());
-    EXPECT_EQ(db.schemaVersion(), 1);
+    EXPECT_EQ(db.schemaVersion(), HangingDrapeDatabase::kSchemaVersion);
     const auto views = db.views(1);
     ASSERT_EQ(views.size(), 1u);
     EXPECT_EQ(views[0].area, mask.count());
@@ -529,7 +525,7 @@ TEST(HangingDrapeDatabase, ConcurrentOpeningOfANewFileCreatesOneSchema) {
         while (ready.load() < 6) std::this_thread::yield();
         try {
           HangingDrapeDatabase db(t.path());
-          if (db.schemaVersion() != 1) errors[static_cast<std::size_t>(w)] = "wrong version";
+          if (db.schemaVersion() != HangingDrapeDatabase::kSchemaVersion) errors[static_cast<std::size_t>(w)] = "wrong version";
         } catch (const std::exception& e) {
           errors[static_cast<std::size_t>(w)] = e.what();
         }

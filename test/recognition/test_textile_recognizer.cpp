@@ -616,18 +616,24 @@ TEST(RecognizerEmptyDatabase, ErrorsUntilReloadFindsSimulations) {
   EXPECT_EQ(r.textile_name, "small_towel");
   EXPECT_EQ(r.grasp_poses.size(), 6u);
 
-  // A resimulation (another material) replaces every row: the counts stay, the ids are reused, the
-  // content differs; the recogniser notices and reloads.
+  // A resimulation (another material) is built as a staged generation: invisible to the recogniser
+  // until its promotion swaps every row in one transaction; then the counts are the same, the content
+  // differs, and the recogniser notices and reloads.
   const db::DatabaseCounts before = db.counts();
-  const std::int64_t id_before = db.simulations().front().id;
+  const std::int64_t textile_id = db.simulations().front().textile_id;
   db::DrapeBuildConfig c2 = c;
   c2.material.areal_density *= 1.5;
-  db.replaceTextileEntries(db.simulations().front().textile_id, c2.material);
-  db::DrapeDatabaseBuilder(db, c2).build();
+  db.stageGeneration(textile_id, c2.material);
+  c2.staged_textile_id = textile_id;
+  const db::DrapeBuildReport staged = db::DrapeDatabaseBuilder(db, c2).build();
+  EXPECT_FALSE(rec.reloadIfChanged()) << "a staged build is visible to readers";
+  EXPECT_EQ(db.counts().staged_done, before.done);
+  db.promoteStagedGeneration(textile_id, staged.generation, db::DrapeDatabaseBuilder::parameterTexts(c2));
   const db::DatabaseCounts after = db.counts();
   EXPECT_EQ(after.done, before.done);
   EXPECT_EQ(after.views, before.views);
-  std::printf("simulation id before %lld, after %lld\n", (long long)id_before, (long long)db.simulations().front().id);
+  EXPECT_EQ(after.staged_simulations, 0);
+  EXPECT_EQ(db.textile(textile_id).material, c2.material);
   EXPECT_TRUE(rec.reloadIfChanged());
   EXPECT_FALSE(rec.reloadIfChanged());
   EXPECT_NO_THROW(rec.recognize(observe(t, 40.0, 0.0, false, 4)));

@@ -66,6 +66,13 @@ struct DrapeBuildConfig {
   vision::CanonicalFrame frame;     ///< default 64 x 64 px, 1 m x 1 m
   vision::SilhouetteProjection projection = vision::SilhouetteProjection::orthographic();
 
+  // ---- target ----
+  /// 0: build the textile named by `textile` (added if missing) into its active generation.
+  /// Otherwise: build into the staged generation of this stored textile (HangingDrapeDatabase::
+  /// stageGeneration), whose material must equal `material`; the rows stay invisible to readers until
+  /// promoteStagedGeneration. Throws NotFoundError from build() if the textile has no staged generation.
+  std::int64_t staged_textile_id = 0;
+
   // ---- execution ----
   int workers = 0;                  ///< simulations run at once (0 = hardware threads)
   int threads_per_simulation = 1;   ///< OpenMP threads inside one simulation
@@ -87,6 +94,7 @@ struct DrapeBuildConfig {
 
 struct DrapeBuildReport {
   std::int64_t textile_id = 0;
+  std::int64_t generation = 0;    ///< the generation the rows were written to
   std::string symmetry;           ///< "none", "x", "y", "xy" (as used: "none" when switched off)
   bool symmetric_grid = false;    ///< particle grid symmetric, mirrored rows derived
   int planned = 0;                ///< hold points (rows) in the plan
@@ -133,6 +141,8 @@ class DrapeDatabaseBuilder {
 
  private:
   DrapeBuildReport buildPass(int corner, const std::vector<PlannedHoldPoint>& plan);
+  /// The textile and generation the rows go to (DrapeBuildConfig::staged_textile_id).
+  std::pair<std::int64_t, std::int64_t> targetTextile();
 
   HangingDrapeDatabase& db_;
   DrapeBuildConfig config_;

@@ -41,7 +41,10 @@ struct DatabaseOpenOptions {
 struct TextileRecord {
   std::int64_t id = 0;
   TextileOutline outline;      ///< as stored (named points = the textile's predefined grasp points)
-  Material material;
+  Material material;           ///< the material of the active generation
+  /// The active generation: the simulations that readers (match index, recognizer, rest shapes) use.
+  /// A resimulation builds a staged generation beside it and promotes it in one transaction.
+  std::int64_t generation = 0;
   TextileSymmetry symmetry;    ///< detected when the textile was added
   std::string created_at;      ///< UTC, ISO 8601
 };
@@ -53,6 +56,8 @@ SimulationStatus simulationStatusFromString(const std::string& s);
 /// A simulation row to plan (status pending).
 struct NewSimulation {
   std::int64_t textile_id = 0;
+  /// The textile's active generation or its staged one (stageGeneration); any other is refused.
+  std::int64_t generation = 0;
   Vec2 hold = Vec2::Zero();     ///< hold point [m], textile frame; must lie on the textile
   int lattice_i = 0, lattice_j = 0;
   MirrorKind source = MirrorKind::kIdentity;  ///< identity = simulated; otherwise derived by mirroring
@@ -69,6 +74,8 @@ struct NewSimulation {
 struct SimulationRecord {
   std::int64_t id = 0;
   std::int64_t textile_id = 0;
+  std::int64_t generation = 0;
+  bool active = false;          ///< generation is the textile's active one (what readers use)
   std::string textile_name;
   Vec2 hold = Vec2::Zero();
   int lattice_i = 0, lattice_j = 0;
@@ -116,14 +123,34 @@ struct StoredView {
   vision::BitMask mask;
 };
 
+/// Counts of the active generations (what readers see); the staged_* fields count staged generations.
 struct DatabaseCounts {
   std::int64_t textiles = 0, simulations = 0, pending = 0, done = 0, failed = 0, views = 0;
   std::int64_t derived = 0;       ///< mirror-derived rows (any status)
+  std::int64_t staged_simulations = 0, staged_done = 0, staged_failed = 0;
+};
+
+/// A generation being built beside a textile's active one (a resimulation). Its rows are invisible to
+/// readers until promoteStagedGeneration swaps them in.
+struct StagedGeneration {
+  std::int64_t textile_id = 0;
+  std::int64_t generation = 0;
+  Material material;            ///< the material the new generation is simulated with
+  Real spacing = 0;             ///< the request's particle spacing [m]; 0 = the builder's default
+  std::string model;            ///< the request's cloth model; empty = the builder's default
+  std::string created_at;
+};
+
+/// What promoteStagedGeneration swapped.
+struct PromotionReport {
+  std::int64_t generation = 0;          ///< the new active generation
+  std::int64_t done = 0, failed = 0;    ///< rows of the new generation
+  std::int64_t removed_simulations = 0; ///< rows of older generations deleted with their views
 };
 
 class HangingDrapeDatabase {
  public:
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
   /// PRAGMA application_id of drape databases ("THDB").
   static constexpr std::int32_t kApplicationId = 0x54484442;
 
@@ -147,10 +174,28 @@ class HangingDrapeDatabase {
   TextileRecord textile(std::int64_t id) const;  ///< throws NotFoundError
   std::optional<TextileRecord> findTextile(const std::string& name) const;
   std::vector<TextileRecord> textiles() const;
-  /// For a rebuild: in one transaction, sets the textile's material and deletes all its simulations
-  /// (their views go with them). Throws NotFoundError for an unknown id, InvalidInputError for an
-  /// invalid material (nothing changed then).
-  void replaceTextileEntries(std::int64_t textile_id, const Material& material);
+
+  // ---- generations: replacing a textile's entries atomically (docs/database.md) ----------------
+  /// Starts a staged generation for a rebuild of a stored textile, in one transaction: a generation
+  /// number above every one the textile has used, with `material`, `spacing` and `model` recorded so
+  /// that an interrupted rebuild can be resumed. A staged generation the textile already had is
+  /// discarded with its rows. The active entries are untouched. Throws NotFoundError (unknown id),
+  /// InvalidInputError (invalid material, negative or non-finite spacing).
+  StagedGeneration stageGeneration(std::int64_t textile_id, const Material& material, Real spacing = 0,
+                                   const std::string& model = "");
+  std::optional<StagedGeneration> stagedGeneration(std::int64_t textile_id) const;
+  std::vector<StagedGeneration> stagedGenerations() const;
+  /// Makes the staged generation `generation` the textile's active one, in one transaction: checks that
+  /// each text of `parameter_texts` has rows in it, none pending, and at most `max_failed_fraction` of
+  /// them failed; deletes every other simulation of the textile (older generations, and staged rows of
+  /// other parameter texts) with their views; sets the textile's material to the staged one. Readers see
+  /// the old complete set before the commit and the new one after it. Throws NotFoundError (no such
+  /// staged generation) or InvalidInputError naming what is incomplete (nothing changed then).
+  PromotionReport promoteStagedGeneration(std::int64_t textile_id, std::int64_t generation,
+                                          const std::vector<std::string>& parameter_texts,
+                                          double max_failed_fraction = 0);
+  /// Deletes a textile's staged generation and its rows (no-op if none). Returns true if one existed.
+  bool discardStagedGeneration(std::int64_t textile_id);
 
   // ---- simulations ----------------------------------------------------------------------------
   /// Plans simulations in one transaction. A row with the same (textile, parameters, hold point) is
@@ -159,7 +204,8 @@ class HangingDrapeDatabase {
   /// textile, bad spacing, empty parameters); nothing is written then.
   std::vector<std::int64_t> addSimulations(const std::vector<NewSimulation>& rows);
   SimulationRecord simulation(std::int64_t id) const;  ///< throws NotFoundError
-  /// Rows of one textile (0 = all), optionally only one status, ordered by id.
+  /// Rows of one textile (0 = all), every generation, optionally only one status, ordered by id
+  /// (SimulationRecord::active tells the rows readers use).
   std::vector<SimulationRecord> simulations(std::int64_t textile_id = 0,
                                             std::optional<SimulationStatus> status = std::nullopt) const;
   /// Stores results atomically: all rows become done with their positions and views, or (on any error)
@@ -180,7 +226,8 @@ class HangingDrapeDatabase {
   DatabaseCounts counts(std::int64_t textile_id = 0) const;
   /// Invariants a crash must never break: every done row has positions and exactly view_count (> 0)
   /// views, pending/failed rows have neither, derived rows point to a simulated row of the same
-  /// textile, no orphan views. Returns the violations (empty = consistent).
+  /// textile and generation, no orphan views, every row belongs to its textile's active or staged
+  /// generation. Returns the violations (empty = consistent).
   std::vector<std::string> consistencyProblems() const;
   /// Result of PRAGMA integrity_check ("ok" when healthy).
   std::string integrityCheck() const;
@@ -204,13 +251,14 @@ class HangingDrapeDatabase {
   mutable std::mutex mutex_;
 };
 
-/// The schema migrations: migrateSchema(conn, from) upgrades a database of version `from` to `from + 1`
-/// inside the caller's transaction (v0 -> v1: views get the `area` column, filled from the mask blobs).
-/// Exposed for tests. Throws on failure (the caller rolls back).
+/// The schema migrations: migrateSchemaStep(conn, from) upgrades a database of version `from` to
+/// `from + 1` inside the caller's transaction, which runs with foreign keys off (v0 -> v1: views get the
+/// `area` column, filled from the mask blobs; v1 -> v2: generations, see docs/database.md). Exposed for
+/// tests. Throws on failure (the caller rolls back).
 void migrateSchemaStep(SqliteConnection& conn, int from_version);
 
-/// The DDL of schema version 1 (docs/database.md).
-const char* schemaV1Sql();
+/// The DDL of the current schema version (docs/database.md).
+std::string schemaSql();
 
 /// Outline vertices as text ("x y" per line, round-trip precision) and back. fromText throws
 /// InvalidInputError for malformed text.

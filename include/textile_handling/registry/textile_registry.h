@@ -51,6 +51,9 @@ struct RegistryOptions {
   int max_hold_points = 2000;
   /// Models a request may name.
   std::vector<std::string> models = {"particle_kes", "choi_ko"};
+  /// A resimulation replaces the active entries only if at most this fraction of its simulations
+  /// failed (the rest done); otherwise the old entries stay and the new ones are kept staged.
+  double max_failed_fraction = 0.05;
 };
 
 struct BuildProgressEvent {
@@ -100,9 +103,15 @@ class TextileRegistry {
   /// Validates and stores a textile, queues its build and returns at once. Throws
   /// db::InvalidInputError (nothing stored) with a message naming the offending field.
   QueuedBuild registerTextile(const TextileRegistration& request);
-  /// Queues a rebuild of a stored textile (its old entries are replaced when the job starts).
-  /// Throws db::NotFoundError for an unknown id, db::InvalidInputError for bad fields.
+  /// Queues a rebuild of a stored textile. The job builds a staged generation beside the old entries,
+  /// which readers keep using until the new set is complete; then one transaction swaps them
+  /// (docs/database.md, "Generations"). Throws db::NotFoundError for an unknown id,
+  /// db::InvalidInputError for bad fields.
   QueuedBuild resimulate(const ResimulationRequest& request);
+  /// Queues the completion of every staged generation in the database (rebuilds interrupted by a
+  /// crash or shutdown), with the staged material, spacing and model and the current defaults
+  /// otherwise. Returns the number of jobs queued.
+  int resumeStagedBuilds();
   /// Queues the build of a stored textile with the current defaults (resumes an interrupted build;
   /// nothing to do if complete).
   QueuedBuild ensureBuilt(std::int64_t textile_id);
@@ -130,7 +139,12 @@ class TextileRegistry {
     std::int64_t textile_id = 0;
     std::string textile_name;
     db::DrapeBuildConfig config;
-    bool replace = false;           ///< delete the textile's old simulations (and set the material) first
+    /// A rebuild into a staged generation: a new one is started when the job runs (stage_new), or the
+    /// existing one is completed; promoted when complete.
+    bool staged = false;
+    bool stage_new = false;
+    Real request_spacing = 0;       ///< recorded with a new staged generation (0 = default)
+    std::string request_model;
   };
 
   QueuedBuild enqueue(Job job);
@@ -138,13 +152,17 @@ class TextileRegistry {
   int planHoldPoints(const db::DrapeBuildConfig& config);
   void workerLoop();
   void runJob(Job& job, int queued_behind);
+  /// Swaps a finished staged build in; false (and why in *outcome) if it is incomplete.
+  bool promoteIfComplete(db::HangingDrapeDatabase& wdb, const Job& job, const db::DrapeBuildReport& rep,
+                         std::string* outcome);
   void emit(const BuildProgressEvent& e) const;
 
   std::string path_;
   RegistryOptions options_;
   ProgressCallback on_progress_;
   ChangedCallback on_changed_;
-  mutable std::mutex db_mutex_;             // guards db_ (the service threads' connection)
+  // The service threads' connection; HangingDrapeDatabase serialises its own calls, and no service
+  // holds it across heavy work (validation and planning run without it).
   std::unique_ptr<db::HangingDrapeDatabase> db_;
   mutable std::mutex queue_mutex_;
   mutable std::condition_variable queue_cv_;

@@ -1,0 +1,169 @@
+// The register_textile / resimulate validators under hostile input: oversized outlines and named-point
+// lists, names that are not names, absurd coordinates, and a randomized fuzz of requests. Every request
+// is either stored or refused with db::InvalidInputError / db::NotFoundError naming the field; refused
+// requests store nothing, and the database stays consistent.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "textile_handling/db/database_errors.h"
+#include "textile_handling/registry/textile_registry.h"
+
+namespace textile_handling {
+namespace registry {
+namespace {
+
+std::string tempDb(const std::string& tag) {
+  const std::string dir = std::filesystem::temp_directory_path().string() + "/th_registry_hostile_" + tag + "_" +
+                          std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  return dir + "/drapes.sqlite";
+}
+
+RegistryOptions smallOptions() {
+  RegistryOptions o;
+  o.build.spacing = 0.05;
+  o.build.lattice_spacing = 0.15;
+  o.build.views.count = 4;
+  o.build.views.step_deg = 90;
+  o.build.workers = 1;
+  o.build.settings.max_time = 2.0;
+  o.material_dir = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials";
+  return o;
+}
+
+TextileRegistration square(const std::string& name) {
+  TextileRegistration r;
+  r.name = name;
+  r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
+  return r;
+}
+
+// A convex polygon of n vertices on a 0.3 m circle (valid but for its size).
+std::vector<Vec2> circle(int n) {
+  std::vector<Vec2> out;
+  for (int k = 0; k < n; ++k) {
+    const double a = 2 * M_PI * k / n;
+    out.emplace_back(0.3 + 0.3 * std::cos(a), 0.3 + 0.3 * std::sin(a));
+  }
+  return out;
+}
+
+// Registers r and expects a refusal whose message contains `needle`.
+void expectRefused(TextileRegistry& reg, const TextileRegistration& r, const std::string& needle, const std::string& what) {
+  try {
+    reg.registerTextile(r);
+    ADD_FAILURE() << what << ": accepted";
+  } catch (const db::InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << what << ": '" << e.what() << "'";
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << what << ": wrong exception type: " << e.what();
+  }
+}
+
+}  // namespace
+
+TEST(RegistryHostileInput, OversizedAndMalformedRequestsAreRefusedAtOnce) {
+  TextileRegistry reg(tempDb("sizes"), smallOptions());
+  TextileRegistration r = square("huge_outline");
+  r.outline = circle(100000);
+  expectRefused(reg, r, "limit", "100,000-vertex outline");
+  r = square("many_points");
+  for (int k = 0; k < 100000; ++k) r.named_points.push_back({"p" + std::to_string(k), "grasp", Vec2(0.15, 0.15)});
+  expectRefused(reg, r, "limit", "100,000 named points");
+  r = square("injection");
+  r.named_points = {{"x'); DROP TABLE grasp_points;--", "grasp", Vec2(0.15, 0.15)}};
+  expectRefused(reg, r, "name", "named point with SQL in its name");
+  r = square("blank_point");
+  r.named_points = {{"", "corner", Vec2(0, 0)}};
+  expectRefused(reg, r, "name", "empty named-point name");
+  r = square("far_away");
+  r.outline = {Vec2(0, 0), Vec2(1e300, 0), Vec2(1e300, 1e300), Vec2(0, 1e300)};
+  expectRefused(reg, r, "", "outline of 1e300 m");
+  r = square("inf");
+  r.outline[1] = Vec2(std::numeric_limits<double>::infinity(), 0);
+  expectRefused(reg, r, "outline", "infinite vertex");
+  r = square("tiny");
+  r.outline = {Vec2(0, 0), Vec2(1e-300, 0), Vec2(1e-300, 1e-300), Vec2(0, 1e-300)};
+  expectRefused(reg, r, "", "outline of 1e-300 m");
+  r = square("yaml_bomb");
+  r.material_yaml = std::string(2 << 20, '[');
+  expectRefused(reg, r, "material", "2 MiB of YAML");
+  EXPECT_TRUE(reg.list().empty());
+  // A legal polygon at the vertex limit's order of magnitude is validated and stored.
+  r = square("round_cloth");
+  r.outline = circle(1000);
+  EXPECT_NO_THROW(reg.registerTextile(r));
+  EXPECT_EQ(reg.list().size(), 1u);
+}
+
+TEST(RegistryHostileInput, RandomRequestsAreStoredOrRefusedCleanly) {
+  TextileRegistry reg(tempDb("fuzz"), smallOptions());
+  std::mt19937 rng(15);
+  auto pick = [&](auto const& v) { return v[std::uniform_int_distribution<std::size_t>(0, v.size() - 1)(rng)]; };
+  const std::vector<double> coords{0,     0.3,  0.15, -0.2, 1.0,  1e300, -1e300, 1e-300,
+                                   std::nan(""), std::numeric_limits<double>::infinity(), -0.0, 0.299999};
+  const std::vector<std::string> names{"napkin", "", "a b", std::string(65, 'x'), "tow\xc3\xa9l", "t;--", "ok_name.1",
+                                       "..", "-", "x'); DROP TABLE textiles;--", std::string(1, '\0') + "z"};
+  const std::vector<std::string> yamls{"", "name: m\nareal_density: -1\n", "{", "[1, 2", "name: x\n",
+                                       "areal_density: .nan\n", std::string(300, '{')};
+  const std::vector<std::string> models{"", "particle_kes", "choi_ko", "yarn", "\n"};
+  int accepted = 0;
+  for (int it = 0; it < 300; ++it) {
+    TextileRegistration r;
+    r.name = pick(names) + (std::uniform_int_distribution<int>(0, 1)(rng) ? std::to_string(it) : "");
+    const int n = std::uniform_int_distribution<int>(0, 8)(rng);
+    if (n >= 3 && std::uniform_int_distribution<int>(0, 2)(rng) == 0) {
+      r.outline = square("").outline;  // mostly valid outlines with other faults
+    } else {
+      for (int k = 0; k < n; ++k) r.outline.emplace_back(pick(coords), pick(coords));
+    }
+    const int points = std::uniform_int_distribution<int>(0, 3)(rng);
+    for (int k = 0; k < points; ++k)
+      r.named_points.push_back({pick(names), k % 2 ? "corner" : pick(names), Vec2(pick(coords), pick(coords))});
+    r.material_yaml = pick(yamls);
+    r.hold_point_spacing = pick(coords);
+    r.model = pick(models);
+    try {
+      reg.registerTextile(r);
+      ++accepted;
+    } catch (const db::InvalidInputError& e) {
+      EXPECT_GT(std::string(e.what()).size(), 5u) << "iteration " << it;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "iteration " << it << ": wrong exception type: " << e.what();
+    }
+    ResimulationRequest q;
+    q.textile_id = std::uniform_int_distribution<int>(-2, 3)(rng);
+    q.spacing = pick(coords);
+    q.model = pick(models);
+    q.material_yaml = pick(yamls);
+    try {
+      reg.resimulate(q);
+    } catch (const db::DrapeDatabaseError& e) {
+      EXPECT_GT(std::string(e.what()).size(), 5u) << "iteration " << it;
+    } catch (const std::exception& e) {
+      ADD_FAILURE() << "iteration " << it << ": wrong exception type in resimulate: " << e.what();
+    }
+  }
+  // What was stored is exactly what was accepted, and every stored textile is valid.
+  const auto list = reg.list();
+  EXPECT_EQ(static_cast<int>(list.size()), accepted);
+  for (const TextileSummary& s : list) {
+    std::string why;
+    EXPECT_TRUE(validateTextileOutline(s.record.outline, &why)) << s.record.outline.name << ": " << why;
+  }
+  db::HangingDrapeDatabase check(reg.databasePath());
+  EXPECT_TRUE(check.consistencyProblems().empty());
+  std::printf("fuzzed 300 registrations: %d accepted\n", accepted);
+}
+
+}  // namespace
+}  // namespace registry
+}  // namespace textile_handling
