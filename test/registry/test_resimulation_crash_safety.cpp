@@ -65,17 +65,34 @@ void copyDb(const std::string& from, const std::string& to) {
   std::filesystem::copy_file(from, to);  // `from` was closed cleanly: no WAL content left
 }
 
-// Runs the resimulation in a child process; returns its pid. The child never returns into gtest.
-pid_t startResimulation(const std::string& path, std::int64_t id) {
+// Runs `job` (which returns an exit status) in a child process; returns its pid. The child never returns
+// into gtest. Every registry runs in a child: libgomp's thread pool does not survive a fork, so the
+// parent itself never simulates.
+template <typename Job>
+pid_t startChild(Job job) {
   const pid_t child = ::fork();
   if (child != 0) return child;
+  int status = 3;
   try {
+    status = job();
+  } catch (...) {
+  }
+  ::_exit(status);
+}
+
+pid_t startResimulation(const std::string& path, std::int64_t id) {
+  return startChild([&] {
     TextileRegistry reg(path, options());
     reg.resimulate(newSettings(id));
-    ::_exit(reg.waitIdle(600.0) ? 0 : 4);
-  } catch (...) {
-    ::_exit(3);
-  }
+    return reg.waitIdle(600.0) ? 0 : 4;
+  });
+}
+
+// Waits for a child and returns its exit status (-1 if it did not exit normally).
+int finish(pid_t child) {
+  int status = 0;
+  if (::waitpid(child, &status, 0) != child || !WIFEXITED(status)) return -1;
+  return WEXITSTATUS(status);
 }
 
 enum class Active { kOld, kNew };
@@ -107,25 +124,23 @@ Active checkOneCompleteSet(const std::string& path, std::int64_t id, const std::
 TEST(ResimulationCrashSafety, KillsAtAnyMomentLeaveTheOldOrTheNewCompleteSet) {
   const std::string pristine = dbPath("pristine");
   removeDb(pristine);
-  std::int64_t id = 0;
-  {
-    TextileRegistry reg(pristine, options());
-    TextileRegistration r;
-    r.name = "napkin";
-    r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
-    id = reg.registerTextile(r).textile_id;
-    ASSERT_TRUE(reg.waitIdle(300.0));
-  }
+  ASSERT_EQ(finish(startChild([&] {
+              TextileRegistry reg(pristine, options());
+              TextileRegistration r;
+              r.name = "napkin";
+              r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
+              reg.registerTextile(r);
+              return reg.waitIdle(300.0) ? 0 : 4;
+            })),
+            0);
+  const std::int64_t id = db::HangingDrapeDatabase(pristine).textiles().at(0).id;
   ASSERT_EQ(checkOneCompleteSet(pristine, id, "before"), Active::kOld);
 
   // An uninterrupted resimulation: how long it takes, and that it ends with the new set.
   const std::string work = dbPath("work");
   copyDb(pristine, work);
   const auto t0 = Clock::now();
-  const pid_t full = startResimulation(work, id);
-  int status = 0;
-  ASSERT_EQ(::waitpid(full, &status, 0), full);
-  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+  ASSERT_EQ(finish(startResimulation(work, id)), 0);
   const double duration_s = std::chrono::duration<double>(Clock::now() - t0).count();
   EXPECT_EQ(checkOneCompleteSet(work, id, "uninterrupted"), Active::kNew);
   std::printf("uninterrupted resimulation: %.2f s\n", duration_s);
@@ -148,6 +163,7 @@ TEST(ResimulationCrashSafety, KillsAtAnyMomentLeaveTheOldOrTheNewCompleteSet) {
     ASSERT_GT(child, 0);
     const auto start = Clock::now();
     bool exited = false;
+    int status = 0;
     if (k.staged_done_at_least >= 0) {
       db::HangingDrapeDatabase watch(work);
       for (;;) {
@@ -182,13 +198,13 @@ TEST(ResimulationCrashSafety, KillsAtAnyMomentLeaveTheOldOrTheNewCompleteSet) {
       EXPECT_EQ(a, Active::kOld) << when;
       EXPECT_TRUE(staged_left) << when;
     }
-    // A restarted registry finishes what was staged and swaps it in.
-    {
+    // A restarted registry finishes what was staged and swaps it in (exit status: jobs resumed).
+    const int resumed = finish(startChild([&] {
       TextileRegistry reg(work, options());
-      const int resumed = reg.resumeStagedBuilds();
-      EXPECT_EQ(resumed, staged_left ? 1 : 0) << when;
-      ASSERT_TRUE(reg.waitIdle(300.0));
-    }
+      const int n = reg.resumeStagedBuilds();
+      return reg.waitIdle(300.0) ? n : 100;
+    }));
+    EXPECT_EQ(resumed, staged_left ? 1 : 0) << when;
     const Active after = checkOneCompleteSet(work, id, when + ", resumed");
     if (staged_left || a == Active::kNew) EXPECT_EQ(after, Active::kNew) << when << ", resumed";
   }
