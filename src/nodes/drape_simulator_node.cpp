@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <new>
 #include <stdexcept>
 
 #include "textile_handling/BuildProgress.h"
@@ -385,18 +386,26 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
       return reject(e.what());
     }
   }
-  DrapeScene scene;
   try {
-    scene = buildDrapeScene(spec);
+    runSimulation(spec, hold.label(), res);
+  } catch (const std::bad_alloc&) {
+    return reject("out of memory while simulating (lower the resolution: spacing_m)");
   } catch (const std::exception& e) {
     return reject(e.what());
   }
+  return true;
+}
+
+void DrapeSimulatorNode::runSimulation(const DrapeSceneSpec& spec, const std::string& hold_label,
+                                       SimulateDrape::Response& res) {
+  // The scene's memory estimate is checked against the budget before anything large is allocated.
+  const DrapeScene scene = buildDrapeScene(spec);
   DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
   sim.setPostStepPass(scene.postStepPass());
   const RunResult r = sim.run();
   auto& s = res.summary;
   s.textile = spec.textile.name;
-  s.hold_point = hold.label();
+  s.hold_point = hold_label;
   s.model = scene.model->name();
   s.integrator = toString(spec.settings.integrator);
   s.spacing_m = spec.spacing;
@@ -417,7 +426,6 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
                            : (r.rest_reached ? "rest reached" : "time cap reached before rest");
   ROS_INFO_NAMED("drape_simulator", "%s held at %s: %s after %.2f s simulated (%ld steps, %.2f s wall)",
                  s.textile.c_str(), s.hold_point.c_str(), res.message.c_str(), r.sim_time, r.steps, r.wall_time);
-  return true;
 }
 
 }  // namespace textile_handling

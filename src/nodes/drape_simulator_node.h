@@ -27,6 +27,8 @@ class DrapeSimulatorNode {
 
  private:
   bool simulateDrape(SimulateDrape::Request& req, SimulateDrape::Response& res);
+  /// Builds and runs one scene and fills the response; throws on bad input or allocation failure.
+  void runSimulation(const DrapeSceneSpec& spec, const std::string& hold_label, SimulateDrape::Response& res);
   bool registerTextile(RegisterTextile::Request& req, RegisterTextile::Response& res);
   bool resimulate(Resimulate::Request& req, Resimulate::Response& res);
   bool listTextiles(ListTextiles::Request& req, ListTextiles::Response& res);

@@ -271,6 +271,43 @@ TEST(DrapeSimulatorNode, MalformedRegistrationsAreRejectedAndTheDatabaseIsUntouc
   EXPECT_EQ(after.response.textiles.size(), before.response.textiles.size());
 }
 
+TEST(DrapeSimulatorNode, HostileRequestsGetClearErrorsAndTheNodeStaysUp) {
+  textile_handling::ListTextiles before;
+  ASSERT_TRUE(callService("list_textiles", before));
+  // 100,000 outline vertices (a circle): refused by the size limit before any validation work.
+  auto huge = napkinRequest("huge_outline");
+  huge.request.named_points.clear();
+  huge.request.outline_x.clear();
+  huge.request.outline_y.clear();
+  for (int k = 0; k < 100000; ++k) {
+    huge.request.outline_x.push_back(0.3 + 0.3 * std::cos(2 * M_PI * k / 100000));
+    huge.request.outline_y.push_back(0.3 + 0.3 * std::sin(2 * M_PI * k / 100000));
+  }
+  ASSERT_TRUE(callService("register_textile", huge));
+  EXPECT_FALSE(huge.response.success);
+  EXPECT_NE(huge.response.message.find("limit"), std::string::npos) << huge.response.message;
+  // A named point whose name is not a name.
+  auto injection = napkinRequest("injection");
+  injection.request.named_points[0].name = "x'); DROP TABLE grasp_points;--";
+  ASSERT_TRUE(callService("register_textile", injection));
+  EXPECT_FALSE(injection.response.success);
+  EXPECT_NE(injection.response.message.find("name"), std::string::npos) << injection.response.message;
+  // A simulation that would need far more memory than the machine has is refused, not attempted.
+  textile_handling::SimulateDrape fine;
+  fine.request.textile = "towel";
+  fine.request.hold_point = "corner_ul";
+  fine.request.spacing_m = 2e-4;
+  ASSERT_TRUE(callService("simulate_drape", fine));
+  EXPECT_FALSE(fine.response.success);
+  EXPECT_NE(fine.response.message.find("memory"), std::string::npos) << fine.response.message;
+  // The node is alive and the stored textiles are unchanged.
+  textile_handling::ListTextiles after;
+  ASSERT_TRUE(callService("list_textiles", after));
+  ASSERT_EQ(after.response.textiles.size(), before.response.textiles.size());
+  for (std::size_t k = 0; k < after.response.textiles.size(); ++k)
+    EXPECT_EQ(after.response.textiles[k].name, before.response.textiles[k].name);
+}
+
 int main(int argc, char** argv) {
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_drape_simulator_node");
