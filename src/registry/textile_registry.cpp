@@ -134,13 +134,8 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
 QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
   checkSpacing(r.spacing, "spacing_m");
   const db::TextileRecord rec = db_->textile(r.textile_id);  // NotFoundError for an unknown id
-  Job job;
-  job.textile_id = rec.id;
-  job.textile_name = rec.outline.name;
-  job.config = options_.build;
-  job.config.textile = rec.outline;
-  job.config.material =
-      r.material_name.empty() && r.material_yaml.empty() ? rec.material : resolveMaterial(r.material_name, r.material_yaml);
+  Job job = storedTextileJob(
+      rec, r.material_name.empty() && r.material_yaml.empty() ? rec.material : resolveMaterial(r.material_name, r.material_yaml));
   std::string error;
   if (!job.config.material.validate(&error)) throw InvalidInputError("material: " + error);
   if (r.spacing > 0) job.config.spacing = r.spacing;
@@ -158,13 +153,7 @@ QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
 int TextileRegistry::resumeStagedBuilds() {
   int queued = 0;
   for (const db::StagedGeneration& g : db_->stagedGenerations()) {
-    const db::TextileRecord rec = db_->textile(g.textile_id);
-    Job job;
-    job.textile_id = rec.id;
-    job.textile_name = rec.outline.name;
-    job.config = options_.build;
-    job.config.textile = rec.outline;
-    job.config.material = g.material;
+    Job job = storedTextileJob(db_->textile(g.textile_id), g.material);
     if (g.spacing > 0) job.config.spacing = g.spacing;
     if (!g.model.empty()) job.config.model = checkedModel(g.model);
     job.staged = true;
@@ -175,14 +164,19 @@ int TextileRegistry::resumeStagedBuilds() {
   return queued;
 }
 
-QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
-  const db::TextileRecord rec = db_->textile(textile_id);
+TextileRegistry::Job TextileRegistry::storedTextileJob(const db::TextileRecord& rec, const Material& material) const {
   Job job;
   job.textile_id = rec.id;
   job.textile_name = rec.outline.name;
   job.config = options_.build;
   job.config.textile = rec.outline;
-  job.config.material = rec.material;
+  job.config.material = material;
+  return job;
+}
+
+QueuedBuild TextileRegistry::ensureBuilt(std::int64_t textile_id) {
+  const db::TextileRecord rec = db_->textile(textile_id);
+  Job job = storedTextileJob(rec, rec.material);
   const int planned = planHoldPoints(job.config);
   QueuedBuild q = enqueue(std::move(job));
   q.hold_points = planned;

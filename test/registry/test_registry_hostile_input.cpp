@@ -14,30 +14,15 @@
 #include <vector>
 
 #include "textile_handling/db/database_errors.h"
+#include "registry_test_support.h"
 #include "textile_handling/registry/textile_registry.h"
 
 namespace textile_handling {
 namespace registry {
 namespace {
 
-std::string tempDb(const std::string& tag) {
-  const std::string dir = std::filesystem::temp_directory_path().string() + "/th_registry_hostile_" + tag + "_" +
-                          std::to_string(::getpid());
-  std::filesystem::remove_all(dir);
-  return dir + "/drapes.sqlite";
-}
-
-RegistryOptions smallOptions() {
-  RegistryOptions o;
-  o.build.spacing = 0.05;
-  o.build.lattice_spacing = 0.15;
-  o.build.views.count = 4;
-  o.build.views.step_deg = 90;
-  o.build.workers = 1;
-  o.build.settings.max_time = 2.0;
-  o.material_dir = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials";
-  return o;
-}
+using test_support::smallOptions;
+using test_support::tempDb;
 
 TextileRegistration square(const std::string& name) {
   TextileRegistration r;

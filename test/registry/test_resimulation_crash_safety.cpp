@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "textile_handling/db/drape_match_index.h"
+#include "registry_test_support.h"
 #include "textile_handling/registry/textile_registry.h"
 
 namespace textile_handling {
@@ -31,14 +32,9 @@ constexpr int kViews = 4;
 constexpr Real kOldSpacing = 0.05, kNewSpacing = 0.03;
 
 RegistryOptions options() {
-  RegistryOptions o;
+  RegistryOptions o = test_support::smallOptions();
   o.build.spacing = kOldSpacing;
-  o.build.lattice_spacing = 0.15;
   o.build.views.count = kViews;
-  o.build.views.step_deg = 90;
-  o.build.workers = 1;
-  o.build.settings.max_time = 6.0;
-  o.material_dir = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials";
   return o;
 }
 
@@ -126,10 +122,7 @@ TEST(ResimulationCrashSafety, KillsAtAnyMomentLeaveTheOldOrTheNewCompleteSet) {
   removeDb(pristine);
   ASSERT_EQ(finish(startChild([&] {
               TextileRegistry reg(pristine, options());
-              TextileRegistration r;
-              r.name = "napkin";
-              r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
-              reg.registerTextile(r);
+              reg.registerTextile(test_support::napkin());
               return reg.waitIdle(300.0) ? 0 : 4;
             })),
             0);

@@ -12,42 +12,16 @@
 #include <vector>
 
 #include "textile_handling/db/database_errors.h"
+#include "registry_test_support.h"
 #include "textile_handling/registry/textile_registry.h"
 
 namespace textile_handling {
 namespace registry {
 namespace {
 
-std::string tempDb(const std::string& tag) {
-  const std::string dir = std::filesystem::temp_directory_path().string() + "/th_registry_" + tag + "_" +
-                          std::to_string(::getpid());
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir + "/drapes.sqlite";
-}
-
-/// Small, fast builds: coarse particle grid, few views, one worker.
-RegistryOptions smallOptions() {
-  RegistryOptions o;
-  o.build.spacing = 0.05;
-  o.build.lattice_spacing = 0.15;
-  o.build.views.count = 4;
-  o.build.views.step_deg = 90;
-  o.build.workers = 1;
-  o.build.settings.max_time = 6.0;
-  o.material_dir = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials";
-  return o;
-}
-
-TextileRegistration napkin(const std::string& name = "napkin") {
-  TextileRegistration r;
-  r.name = name;
-  r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
-  r.named_points = {{"corner_a", "corner", Vec2(0, 0)}, {"corner_b", "corner", Vec2(0.3, 0.3)},
-                    {"middle", "grasp", Vec2(0.15, 0.15)}};
-  r.material_name = "cotton";
-  return r;
-}
+using test_support::napkin;
+using test_support::smallOptions;
+using test_support::tempDb;
 
 struct Events {
   std::mutex mu;

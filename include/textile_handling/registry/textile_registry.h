@@ -148,6 +148,8 @@ class TextileRegistry {
   };
 
   QueuedBuild enqueue(Job job);
+  /// A build of a stored textile with the registry's defaults and `material`.
+  Job storedTextileJob(const db::TextileRecord& rec, const Material& material) const;
   std::string checkedModel(const std::string& model) const;  // throws InvalidInputError
   int planHoldPoints(const db::DrapeBuildConfig& config);
   void workerLoop();

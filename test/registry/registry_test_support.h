@@ -1,0 +1,50 @@
+// Shared by the registry suites: temporary database paths, small fast build options, a test textile.
+#pragma once
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+
+#include "textile_handling/registry/textile_registry.h"
+
+namespace textile_handling {
+namespace registry {
+namespace test_support {
+
+/// A database path in a fresh temporary directory unique to the process and `tag`.
+inline std::string tempDb(const std::string& tag) {
+  const std::string dir = std::filesystem::temp_directory_path().string() + "/th_registry_" + tag + "_" +
+                          std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir + "/drapes.sqlite";
+}
+
+/// Small, fast builds: coarse particle grid (d = 5 cm), 4 views, lattice 15 cm, one worker.
+inline RegistryOptions smallOptions() {
+  RegistryOptions o;
+  o.build.spacing = 0.05;
+  o.build.lattice_spacing = 0.15;
+  o.build.views.count = 4;
+  o.build.views.step_deg = 90;
+  o.build.workers = 1;
+  o.build.settings.max_time = 6.0;
+  o.material_dir = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials";
+  return o;
+}
+
+/// A 30 x 30 cm square with two corners and a middle grasp point.
+inline TextileRegistration napkin(const std::string& name = "napkin") {
+  TextileRegistration r;
+  r.name = name;
+  r.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.3), Vec2(0, 0.3)};
+  r.named_points = {{"corner_a", "corner", Vec2(0, 0)}, {"corner_b", "corner", Vec2(0.3, 0.3)},
+                    {"middle", "grasp", Vec2(0.15, 0.15)}};
+  r.material_name = "cotton";
+  return r;
+}
+
+}  // namespace test_support
+}  // namespace registry
+}  // namespace textile_handling
