@@ -7,7 +7,10 @@ int main(int argc, char** argv) {
   ros::NodeHandle nh, pnh("~");
   try {
     textile_handling::DrapeSimulatorNode node(nh, pnh);
-    ros::AsyncSpinner spinner(2);  // a long simulation does not block other service calls
+    // simulate_drape runs its simulation in the callback (bounded by max_sim_time_s and the memory
+    // budget); four threads keep list_textiles and the other services answering while two such calls
+    // and a registration's validation run.
+    ros::AsyncSpinner spinner(4);
     spinner.start();
     ros::waitForShutdown();
   } catch (const std::exception& e) {
