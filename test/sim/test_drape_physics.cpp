@@ -839,10 +839,24 @@ obstacles:
   EXPECT_TRUE(scene.x0.segment<3>(3 * scene.hold_particle).isApprox(Vec3(0.5, 0.0, 1.2)));
 }
 
+// `text` plus the required top-level keys it does not set itself (towel, cotton, d = 5 cm, held at a
+// corner), so that each malformed-field case below fails for its own field.
+std::string withRequiredKeys(const std::string& text) {
+  if (!text.empty() && text[0] == '-') return text;  // a top-level list stays one
+  std::string out;
+  for (const char* line : {"textile: towel", "material: cotton", "spacing_m: 0.05", "hold: {points: [corner_ul]}"}) {
+    const std::string key = std::string(line).substr(0, std::string(line).find(':') + 1);
+    if (text.rfind(key, 0) != 0 && text.find("\n" + key) == std::string::npos) out += std::string(line) + "\n";
+  }
+  return out + text;
+}
+
 TEST(DrapeSceneYaml, ChoiKoModelIsSelectablePerScene) {
   const DrapeSceneSpec s = parseDrapeSceneYaml(R"(
 textile: square
+material: cotton
 spacing_m: 0.05
+hold: {points: [corner_ul]}
 model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, tensile_stiffness_N_m: 400,
         settle_damping_per_s: 0}
 )");
@@ -853,7 +867,7 @@ model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, 
   const DrapeScene scene = buildDrapeScene(s);
   EXPECT_EQ(scene.model->name(), "choi_ko");
   EXPECT_EQ(scene.model->numNodes(), 7 * 7);
-  EXPECT_THROW(parseDrapeSceneYaml("model: {bending_version: shell}"), std::invalid_argument);
+  EXPECT_THROW(parseDrapeSceneYaml(withRequiredKeys("model: {bending_version: shell}")), std::invalid_argument);
   DrapeSceneSpec bad = s;
   bad.model = "yarn_level";
   EXPECT_THROW(buildDrapeScene(bad), std::invalid_argument);
@@ -874,7 +888,7 @@ void expectRejected(const std::function<void()>& f, const std::vector<std::strin
 }
 
 TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
-  auto parse = [](const std::string& text) { return [text] { parseDrapeSceneYaml(text); }; };
+  auto parse = [](const std::string& text) { return [text] { parseDrapeSceneYaml(withRequiredKeys(text)); }; };
   expectRejected(parse("simulation: {integrator: euler}"), {"integrator", "euler"}, "unknown integrator");
   expectRejected(parse("simulation: {integrator: [rk4]}"), {"simulation.integrator"}, "integrator not a string");
   expectRejected(parse("simulation: {policy: sometimes}"), {"policy", "sometimes"}, "unknown policy");
@@ -930,7 +944,9 @@ TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
   expectRejected(parse("- just\n- a list"), {"map"}, "top level not a map");
 
   // Semantic errors found when building.
-  auto build = [](const std::string& text) { return [text] { buildDrapeScene(parseDrapeSceneYaml(text)); }; };
+  auto build = [](const std::string& text) {
+    return [text] { buildDrapeScene(parseDrapeSceneYaml(withRequiredKeys(text))); };
+  };
   expectRejected(build("hold: {points: [nowhere]}"), {"nowhere", "corner_ul"}, "unknown named hold point");
   expectRejected(build("model: {name: mass_spring}"), {"mass_spring"}, "unknown model");
   expectRejected(build("hold: {points: [corner_ul], lift: [[1, 0, 0, 0], [0.5, 0, 0, 1]]}"), {"lift"},

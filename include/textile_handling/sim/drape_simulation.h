@@ -45,6 +45,10 @@ struct SimulationSettings {
   /// Wall-time cap of one run() call [s] (0 = none): run() returns with wall_cap_reached, neither at
   /// rest nor diverged; a later run() continues. For benchmarks and services that must answer.
   Real max_wall_time = 0;
+  /// Memory budget of this simulation [bytes], a property of the machine and never read from scene
+  /// files; 0 = half of physical memory. buildDrapeScene() refuses scenes whose estimate exceeds it
+  /// (memory_budget.h).
+  std::size_t memory_budget_bytes = 0;
 };
 
 struct RunResult {
