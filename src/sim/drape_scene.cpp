@@ -252,6 +252,12 @@ Real positive(const YAML::Node& parent, const char* key, Real fallback, const st
   return v;
 }
 
+// Optional positive numbers of one section: each present key overwrites its field.
+void readPositives(const YAML::Node& section, const std::string& where,
+                   std::initializer_list<std::pair<const char*, Real*>> fields) {
+  for (const auto& f : fields) *f.second = positive(section, f.first, *f.second, where);
+}
+
 // Scalars of other types, with an error naming the field instead of yaml-cpp's "bad conversion".
 std::string getString(const YAML::Node& n, const std::string& field) {
   if (!n.IsScalar()) fail(quoted(field) + " must be a string");
@@ -275,6 +281,12 @@ bool getBool(const YAML::Node& parent, const char* key, bool fallback, const std
   } catch (const YAML::Exception&) {
     fail("'" + where + key + "' must be true or false");
   }
+}
+
+// Optional booleans of one section: each present key overwrites its field.
+void readBools(const YAML::Node& section, const std::string& where,
+               std::initializer_list<std::pair<const char*, bool*>> fields) {
+  for (const auto& f : fields) *f.second = getBool(section, f.first, *f.second, where);
 }
 
 template <int N>
@@ -410,10 +422,9 @@ void parseModel(const YAML::Node& m, DrapeSceneSpec& s) {
     else if (j == "definite_fix") s.model_options.jacobian = JacobianMode::kDefiniteFix;
     else fail("'model.jacobian' must be exact or definite_fix");
   }
-  s.model_options.gravity = getBool(m, "gravity", true, "model.");
-  s.model_options.drag = getBool(m, "drag", true, "model.");
-  s.model_options.shear = getBool(m, "shear", true, "model.");
-  s.model_options.bending = getBool(m, "bending", true, "model.");
+  readBools(m, "model.",
+            {{"gravity", &s.model_options.gravity}, {"drag", &s.model_options.drag},
+             {"shear", &s.model_options.shear}, {"bending", &s.model_options.bending}});
   if (m["settle_damping_per_s"]) {
     s.model_options.settle_damping = getReal(m["settle_damping_per_s"], "model.settle_damping_per_s");
     if (!(s.model_options.settle_damping >= 0)) fail("'model.settle_damping_per_s' must be >= 0");
@@ -455,16 +466,12 @@ void parseSimulation(const YAML::Node& m, SimulationSettings& t) {
              "cg_smoothing_steps", "cg_smoothing_weight", "cg_accept_tolerance", "trajectory_every"});
   if (m["integrator"]) t.integrator = getEnum<IntegratorType>(m["integrator"], "simulation.integrator", integratorFromString);
   if (m["policy"]) t.policy = getEnum<StepPolicy>(m["policy"], "simulation.policy", stepPolicyFromString);
-  t.dt = positive(m, "dt_s", t.dt, "simulation.");
-  t.dt_min = positive(m, "dt_min_s", t.dt_min, "simulation.");
-  t.dt_max = positive(m, "dt_max_s", t.dt_max, "simulation.");
-  t.error_tolerance = positive(m, "error_tolerance_m", t.error_tolerance, "simulation.");
-  t.max_time = positive(m, "max_time_s", t.max_time, "simulation.");
-  t.max_wall_time = positive(m, "max_wall_time_s", t.max_wall_time, "simulation.");
-  t.rest_speed = positive(m, "rest_speed_m_s", t.rest_speed, "simulation.");
-  t.rest_mean_speed = positive(m, "rest_mean_speed_m_s", t.rest_mean_speed, "simulation.");
-  t.rest_duration = positive(m, "rest_duration_s", t.rest_duration, "simulation.");
-  t.max_edge_stretch = positive(m, "max_edge_stretch", t.max_edge_stretch, "simulation.");
+  readPositives(m, "simulation.",
+                {{"dt_s", &t.dt}, {"dt_min_s", &t.dt_min}, {"dt_max_s", &t.dt_max},
+                 {"error_tolerance_m", &t.error_tolerance}, {"max_time_s", &t.max_time},
+                 {"max_wall_time_s", &t.max_wall_time}, {"rest_speed_m_s", &t.rest_speed},
+                 {"rest_mean_speed_m_s", &t.rest_mean_speed}, {"rest_duration_s", &t.rest_duration},
+                 {"max_edge_stretch", &t.max_edge_stretch}});
   parseSolverKeys(m, t.solver);
   if (m["trajectory_every"]) t.trajectory_every = getInt(m["trajectory_every"], "simulation.trajectory_every");
   if (t.trajectory_every < 0) fail("'simulation.trajectory_every' must be >= 0");
@@ -499,24 +506,21 @@ void parseCollision(const YAML::Node& c, DrapeSceneSpec& s) {
     o.max_passes = getInt(c["max_passes"], "collision.max_passes");
     if (o.max_passes < 1) fail("'collision.max_passes' must be >= 1");
   }
-  o.d_min = positive(c, "d_min_m", o.d_min, "collision.");
-  o.include_diagonals = getBool(c, "include_diagonals", o.include_diagonals, "collision.");
-  o.point_in_triangle_check = getBool(c, "point_in_triangle_check", o.point_in_triangle_check, "collision.");
-  o.fallback_rollback = getBool(c, "fallback_rollback", o.fallback_rollback, "collision.");
+  // Proximity stage keys (persistent contact) too; their ranges are checked by the pass constructor.
+  readPositives(c, "collision.",
+                {{"d_min_m", &o.d_min}, {"cell_size_factor", &o.cell_size_factor},
+                 {"thickness_factor", &o.thickness_factor}, {"proximity_search_factor", &o.proximity_search_factor}});
+  readBools(c, "collision.",
+            {{"include_diagonals", &o.include_diagonals}, {"point_in_triangle_check", &o.point_in_triangle_check},
+             {"fallback_rollback", &o.fallback_rollback}, {"proximity", &o.proximity},
+             {"proximity_propagate", &o.proximity_propagate}, {"proximity_edges", &o.proximity_edges},
+             {"contact_forces", &o.contact_forces}});
   for (const char* key : {"restitution", "tangential_damping"}) {
     if (!c[key]) continue;
     const Real v = getReal(c[key], std::string("collision.") + key);
     if (!(v >= 0 && v <= 1)) fail(std::string("'collision.") + key + "' must be in [0, 1]");
     (std::string(key) == "restitution" ? o.restitution : o.tangential_damping) = v;
   }
-  o.cell_size_factor = positive(c, "cell_size_factor", o.cell_size_factor, "collision.");
-  // Proximity stage (persistent contact); ranges are checked by the pass constructor.
-  o.proximity = getBool(c, "proximity", o.proximity, "collision.");
-  o.proximity_propagate = getBool(c, "proximity_propagate", o.proximity_propagate, "collision.");
-  o.proximity_edges = getBool(c, "proximity_edges", o.proximity_edges, "collision.");
-  o.contact_forces = getBool(c, "contact_forces", o.contact_forces, "collision.");
-  o.thickness_factor = positive(c, "thickness_factor", o.thickness_factor, "collision.");
-  o.proximity_search_factor = positive(c, "proximity_search_factor", o.proximity_search_factor, "collision.");
   if (c["proximity_friction"]) o.proximity_friction = getReal(c["proximity_friction"], "collision.proximity_friction");
   if (c["proximity_separation"])
     o.proximity_separation = getReal(c["proximity_separation"], "collision.proximity_separation");
