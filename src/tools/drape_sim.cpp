@@ -152,11 +152,7 @@ void writeOutputs(const std::string& out_dir, const DrapeScene& scene, const Dra
           f << fr.t << ',' << k << ',' << fr.x[3 * k] << ',' << fr.x[3 * k + 1] << ',' << fr.x[3 * k + 2] << '\n';
     });
   }
-  try {
-    sim.save(out_dir + "/state.txt");
-  } catch (const std::runtime_error& e) {
-    throw OutputError(e.what());
-  }
+  sim.save(out_dir + "/state.txt");
   if (!r.diverged) {
     std::string err;
     if (!writeRestShapePicture(out_dir + "/rest_shape.png", ParticleTopology::fromGrid(scene.grid), sim.positions(),

@@ -143,6 +143,20 @@ TEST(DrapeSimCli, AnUnwritableOutputDirectoryFailsBeforeSimulating) {
   EXPECT_FALSE(contains(o.out, "simulating")) << o.out;
 }
 
+TEST(DrapeSimCli, AFailedWriteExitsWithFourAndClaimsNoOutputs) {
+  // Each output goes through NAME.tmp; linking those to /dev/full makes every write fail (ENOSPC).
+  Scratch s;
+  const std::string out = s.dir + "/full";
+  std::filesystem::create_directories(out);
+  for (const char* f : {"result.yaml", "rest_positions.csv", "state.txt", "rest_shape.png"})
+    std::filesystem::create_symlink("/dev/full", out + "/" + f + ".tmp");
+  const Outcome o = runDrapeSim({s.scene("small.yaml", kSmallScene), "--out", out, "--threads", "1"});
+  EXPECT_EQ(o.exit_code, 4) << o.err;
+  EXPECT_TRUE(contains(o.err, "cannot write outputs")) << o.err;
+  EXPECT_TRUE(contains(o.err, out + "/result.yaml")) << o.err;
+  EXPECT_FALSE(contains(o.out, "outputs in")) << o.out;
+}
+
 TEST(DrapeSimCli, ATowelAtTwoTenthsOfAMillimetreIsRefusedByTheMemoryBudget) {
   Scratch s;
   const std::string scene =
