@@ -78,6 +78,32 @@ TEST(EdgeCrossing, FindsTheCrossingOfALargeOutline) {
   EXPECT_EQ(k, bk);
 }
 
+TEST(Rasterisation, RowWiseClassificationMatchesPointInPolygonExactly) {
+  // Rasterisation tests only the edges near each row; every node must still get pointInPolygon()'s
+  // answer, including nodes on the boundary (axis-aligned outlines put whole rows on edges).
+  std::mt19937 rng(777);
+  std::vector<TextileOutline> shapes;
+  for (int trial = 0; trial < 40; ++trial) {
+    TextileOutline t;
+    t.name = "star";
+    for (const Vec2& v : randomStarPolygon(rng, 5 + trial * 7)) t.outline.push_back(Vec2(0.5, 0.5) + 0.4 * v);
+    shapes.push_back(t);
+  }
+  for (const std::string& name : presetTextileNames()) shapes.push_back(presetTextile(name));
+  for (const TextileOutline& t : shapes) {
+    for (const Real d : {0.05, 0.02, 0.0123}) {
+      std::string error;
+      const ParticleGrid grid = ParticleGrid::rasterize(t, d, &error);
+      ASSERT_FALSE(grid.empty()) << error;
+      const int first = t.mirrored ? static_cast<int>(grid.cols() / 2) : 0;  // mirrored: the other half is copied
+      for (Index i = 0; i < grid.rows(); ++i)
+        for (Index j = first; j < grid.cols(); ++j)
+          ASSERT_EQ(grid.active(i, j), pointInPolygon(grid.polygon(), grid.node(i, j), 1e-9 * d))
+              << t.name << " d=" << d << " node " << i << "," << j;
+    }
+  }
+}
+
 TEST(OutlineLimits, AnOutlineAtTheLimitIsValid) {
   TextileOutline t;
   t.name = "round_cloth";

@@ -137,6 +137,9 @@ class ParticleGrid {
   /// activity of the x >= mirror_x half is copied to the other half, so the
   /// active set is exactly mirror-symmetric: active(i, j) == active(i, cols-1-j).
   ///
+  /// Each row is tested against only the outline edges that cross or touch it (same arithmetic as
+  /// pointInPolygon(), so the same answers), O(rows * n + nodes * k) for an n-gon.
+  ///
   /// On failure returns an empty grid and, if `error` is non-null, sets a reason:
   /// spacing not finite or <= 0, invalid outline, grid too large (> 1e8 nodes),
   /// or fewer than 4 active particles. `error` is cleared on success.
