@@ -20,6 +20,9 @@
 //
 // Every run is capped at --max-wall seconds of wall time (default 300): an explicit integrator at
 // d = 0.5 cm would otherwise run for hours; a capped row says so in its note.
+//
+// Exit status: 0 done, 2 bad input or usage (also a scene over the memory budget), 4 outputs cannot
+// be written, 5 out of memory or another unexpected error.
 #include <omp.h>
 
 #include <algorithm>
@@ -32,12 +35,15 @@
 #include <functional>
 #include <iostream>
 #include <map>
+#include <new>
 #include <string>
 #include <vector>
 
 #include "textile_handling/sim/bench_chart.h"
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/stability_scenes.h"
+#include "textile_handling/sim/thread_limit.h"
 
 using namespace textile_handling;
 
@@ -114,19 +120,33 @@ constexpr const char* kCsvHeader =
     "ms_per_step,assembly_ms_per_step,solve_ms_per_step,collision_ms_per_step,collision_events,cg_its_per_step,"
     "mean_err_m,max_err_m,diff_from_particle_m,intersecting_pairs,rest_reached,diverged,threads,note\n";
 
-}  // namespace
+constexpr int kExitBadInput = 2;
+constexpr int kExitOutput = 4;
+constexpr int kExitInternal = 5;
 
-int main(int argc, char** argv) {
+// Throws OutputError if an earlier write to `f` failed (a full disk must not look like a finished run).
+void checkWritten(const std::ostream& f, const std::string& path) {
+  if (!f) throw OutputError("cannot write " + path + " (disk full or I/O error)");
+}
+
+int benchMain(int argc, char** argv) {
   std::string out_dir = "out/bench";
   bool quick = false, stability = true;
   std::string only;  // run only the configurations whose label contains this (and their references)
   Real max_wall = 300;
   Real only_spacing = 0;  // --spacing: run this resolution only
+  int threads = 0;        // 0 = the OpenMP default (capped too)
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--out" && i + 1 < argc) out_dir = argv[++i];
     else if (a == "--quick") quick = true;
-    else if (a == "--threads" && i + 1 < argc) omp_set_num_threads(std::atoi(argv[++i]));
+    else if (a == "--threads" && i + 1 < argc) {
+      std::string error;
+      if (!parseThreadCount(argv[++i], &threads, &error)) {
+        std::cerr << "drape_bench: " << error << "\n";
+        return kExitBadInput;
+      }
+    }
     else if (a == "--max-wall" && i + 1 < argc) max_wall = std::atof(argv[++i]);
     else if (a == "--no-stability") stability = false;
     else if (a == "--only" && i + 1 < argc) only = argv[++i];
@@ -140,12 +160,17 @@ int main(int argc, char** argv) {
     std::cerr << "drape_bench: --max-wall must be positive\n";
     return 2;
   }
-  std::filesystem::create_directories(out_dir);
+  std::string note;
+  applyThreadLimit(threads, &note);
+  if (!note.empty()) std::cout << "drape_bench: note: " << note << "\n";
+  createDirectories(out_dir, 0755);
+  checkWritableDirectory(out_dir);
   std::vector<Real> spacings = quick ? std::vector<Real>{0.01} : std::vector<Real>{0.01, 0.005};
   if (only_spacing > 0) spacings = {only_spacing};
   const std::string csv = out_dir + "/sim_benchmark.csv";
   std::ofstream csv_file(csv);
-  csv_file << kCsvHeader;
+  csv_file << kCsvHeader << std::flush;
+  checkWritten(csv_file, csv);
   const std::vector<std::string> holds = {"corner_ul", "short_side_left_mid"};
   auto integ = [](IntegratorType it, StepPolicy p, Real dt0) {
     return [=](DrapeSceneSpec& s) {
@@ -296,6 +321,7 @@ int main(int argc, char** argv) {
         std::fflush(stdout);
         rows.push_back(row);
         writeCsvRow(csv_file, row);
+        checkWritten(csv_file, csv);
       }
     }
   }
@@ -314,7 +340,7 @@ int main(int argc, char** argv) {
   std::string err;
   if (!writeLogLogChart(out_dir + "/sim_benchmark.png", points, "wall time to rest [s]", "mean rest-shape error [m]",
                         "drape_bench: towel 64x46 cm, cotton", &err))
-    std::cerr << "drape_bench: " << err << "\n";
+    throw OutputError(err);
   std::cout << "wrote " << csv << " and " << out_dir << "/sim_benchmark.png\n";
 
   if (stability) {
@@ -339,9 +365,28 @@ int main(int argc, char** argv) {
         }
       }
     }
-    std::ofstream f(out_dir + "/stability.csv");
-    writeStabilityCsv(f, all);
+    writeFileAtomically(out_dir + "/stability.csv", [&](std::ostream& f) { writeStabilityCsv(f, all); });
     std::cout << "wrote " << out_dir << "/stability.csv\n";
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Nothing escapes main: each failure class has its own exit status.
+  try {
+    return benchMain(argc, argv);
+  } catch (const OutputError& e) {
+    std::cerr << "drape_bench: cannot write outputs: " << e.what() << "\n";
+    return kExitOutput;
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "drape_bench: " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "drape_bench: out of memory\n";
+  } catch (const std::exception& e) {
+    std::cerr << "drape_bench: unexpected error: " << e.what() << "\n";
+  }
+  return kExitInternal;
 }

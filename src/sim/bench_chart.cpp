@@ -1,5 +1,7 @@
 #include "textile_handling/sim/bench_chart.h"
 
+#include "png_output.h"
+
 #include <algorithm>
 #include <cmath>
 #include <map>
@@ -61,16 +63,7 @@ bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& po
     cv::putText(img, name, {left + pw + 38, ly + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
     ly += 24;
   }
-  try {
-    if (!cv::imwrite(path, img)) {
-      if (error) *error = "chart: cannot write " + path;
-      return false;
-    }
-  } catch (const cv::Exception& e) {
-    if (error) *error = std::string("chart: ") + e.what();
-    return false;
-  }
-  return true;
+  return writePngFile(path, img, "chart", error);
 }
 
 }  // namespace textile_handling

@@ -2,8 +2,14 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "textile_handling/sim/memory_budget.h"
+#include "textile_handling/sim/text_input.h"
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 
@@ -18,6 +24,10 @@ std::string HoldPoint::label() const {
 
 namespace {
 
+// A hold position this close to the outline [m] counts as on it: far below any particle spacing,
+// far above the rounding of coordinates written in decimal.
+constexpr Real kHoldTolerance = 1e-6;
+
 Vec2 resolveHold(const TextileOutline& t, const HoldPoint& h) {
   if (h.name.empty()) return h.position;
   for (const auto& np : t.named_points)
@@ -25,6 +35,30 @@ Vec2 resolveHold(const TextileOutline& t, const HoldPoint& h) {
   std::string known;
   for (const auto& np : t.named_points) known += (known.empty() ? "" : ", ") + np.name;
   throw std::invalid_argument("textile '" + t.name + "' has no named point '" + h.name + "' (known: " + known + ")");
+}
+
+// Hold positions given as coordinates must lie on the textile (named points are checked with the
+// outline); a point beside it would silently pin the nearest particle instead.
+void checkHoldPointsOnTextile(const DrapeSceneSpec& spec, const std::vector<Vec2>& outline) {
+  for (std::size_t k = 0; k < spec.hold.size(); ++k) {
+    const HoldPoint& h = spec.hold[k];
+    if (!h.name.empty()) continue;
+    if (!h.position.allFinite() || !pointInPolygon(outline, h.position, kHoldTolerance))
+      throw std::invalid_argument("hold point " + std::to_string(k) + " (" + h.label() + ") lies outside the outline of textile '" +
+                                  spec.textile.name + "'");
+  }
+}
+
+// The scene's memory estimate against its budget, before the model and the solver allocate.
+void checkSceneMemory(const DrapeSceneSpec& spec, Index nodes) {
+  SimulationMemoryInput in;
+  in.nodes = nodes;
+  in.integrator = spec.settings.integrator;
+  in.solver = spec.settings.solver.kind;
+  in.self_collision = spec.self_collision;
+  const std::string what = "the scene (textile '" + spec.textile.name + "', " + std::to_string(nodes) +
+                           " particles at spacing " + std::to_string(spec.spacing) + " m)";
+  checkMemoryBudget(estimateSimulationBytes(in), spec.settings.memory_budget_bytes, what);
 }
 
 }  // namespace
@@ -53,6 +87,8 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   scene.spec = spec;
   scene.grid = ParticleGrid::rasterize(spec.textile, spec.spacing, &error);
   if (scene.grid.empty()) throw std::invalid_argument("rasterisation failed: " + error);
+  checkHoldPointsOnTextile(spec, scene.grid.polygon());
+  checkSceneMemory(spec, scene.grid.numActive());
   ParticleTopology topology = ParticleTopology::fromGrid(scene.grid);
   std::unique_ptr<ClothModel> model;
   if (spec.model == "choi_ko")
@@ -90,9 +126,11 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
     if (scene.hold_particle < 0) scene.hold_particle = p;
     pin(p);
   }
-  for (const auto& r : spec.pinned_regions) {
+  for (std::size_t k = 0; k < spec.pinned_regions.size(); ++k) {
+    const auto& r = spec.pinned_regions[k];
+    const std::string name = "pinned region " + std::to_string(k);
     if (!r.allFinite() || !(r[2] >= r[0]) || !(r[3] >= r[1]))
-      throw std::invalid_argument("pinned region must be finite with x0 <= x1 and y0 <= y1");
+      throw std::invalid_argument(name + " must be finite with x0 <= x1 and y0 <= y1");
     const Index before = static_cast<Index>(scene.pins.nodes.size());
     for (Index p = 0; p < n; ++p) {
       const Vec2 q = scene.grid.activePosition(p);
@@ -100,7 +138,7 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
       if (q.x() >= r[0] - tol && q.x() <= r[2] + tol && q.y() >= r[1] - tol && q.y() <= r[3] + tol) pin(p);
     }
     if (static_cast<Index>(scene.pins.nodes.size()) == before)
-      throw std::invalid_argument("pinned region contains no particle");
+      throw std::invalid_argument(name + " contains no particle (it lies outside the textile or between particles)");
   }
   if (scene.hold_particle < 0) scene.hold_particle = scene.pins.nodes.front();
   scene.pins.waypoint_times = spec.lift_times;
@@ -154,365 +192,440 @@ Real hangingDepth(const DrapeScene& scene, const VecX& x) {
 
 namespace {
 
+// Longest list of a scene other than outlines and named points (whose limits are in
+// textile_geometry.h): hold points, lift waypoints, pinned regions, obstacles of each kind.
+constexpr std::size_t kMaxSceneListLength = 256;
+
+[[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("scene: " + message); }
+
+// Keys and names from the file are quoted at most this long in messages.
+std::string quoted(const std::string& text) {
+  return "'" + (text.size() > kMaxTextileNameLength ? text.substr(0, kMaxTextileNameLength) + "..." : text) + "'";
+}
+
+std::string joined(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
+
+using KeyList = std::initializer_list<const char*>;
+
+// Every key of the map `n` (at `path`) must be a plain string from `known`, and none may repeat.
+void checkKeys(const YAML::Node& n, const std::string& path, KeyList known) {
+  if (!n.IsMap()) fail(quoted(path) + " must be a map");
+  std::set<std::string> seen;
+  for (const auto& kv : n) {
+    if (!kv.first.IsScalar()) fail(quoted(path) + " has a key that is not a plain string");
+    const std::string& key = kv.first.Scalar();
+    if (std::none_of(known.begin(), known.end(), [&](const char* k) { return key == k; })) {
+      std::string list;
+      for (const char* k : known) list += (list.empty() ? "" : ", ") + std::string(k);
+      fail("unknown key " + quoted(joined(path, key)) + " (known: " + list + ")");
+    }
+    if (!seen.insert(key).second) fail("key " + quoted(joined(path, key)) + " appears twice");
+  }
+}
+
+void requireKey(const YAML::Node& n, const char* key, const std::string& path) {
+  if (!n[key]) fail("missing required key " + quoted(joined(path, key)));
+}
+
+// A list with at most `limit` items, checked before any item is copied.
+void checkList(const YAML::Node& n, const std::string& field, std::size_t limit) {
+  if (!n.IsSequence()) fail(quoted(field) + " must be a list");
+  if (n.size() > limit)
+    fail(quoted(field) + " has " + std::to_string(n.size()) + " items, more than the limit of " + std::to_string(limit));
+}
+
 Real getReal(const YAML::Node& n, const std::string& field) {
+  if (!n.IsScalar()) fail(quoted(field) + " must be a number");
   try {
     const Real v = n.as<Real>();
-    if (!std::isfinite(v)) throw std::invalid_argument("scene: '" + field + "' is not finite");
+    if (!std::isfinite(v)) fail(quoted(field) + " is not finite");
     return v;
   } catch (const YAML::Exception&) {
-    throw std::invalid_argument("scene: '" + field + "' must be a number");
+    fail(quoted(field) + " must be a number");
   }
 }
 
 Real positive(const YAML::Node& parent, const char* key, Real fallback, const std::string& where) {
   if (!parent[key]) return fallback;
   const Real v = getReal(parent[key], where + key);
-  if (!(v > 0)) throw std::invalid_argument("scene: '" + where + key + "' must be positive");
+  if (!(v > 0)) fail("'" + where + key + "' must be positive");
   return v;
+}
+
+// Optional positive numbers of one section: each present key overwrites its field.
+void readPositives(const YAML::Node& section, const std::string& where,
+                   std::initializer_list<std::pair<const char*, Real*>> fields) {
+  for (const auto& f : fields) *f.second = positive(section, f.first, *f.second, where);
 }
 
 // Scalars of other types, with an error naming the field instead of yaml-cpp's "bad conversion".
 std::string getString(const YAML::Node& n, const std::string& field) {
-  if (!n.IsScalar()) throw std::invalid_argument("scene: '" + field + "' must be a string");
-  return n.as<std::string>();
+  if (!n.IsScalar()) fail(quoted(field) + " must be a string");
+  return n.Scalar();
 }
 
 int getInt(const YAML::Node& n, const std::string& field) {
+  if (!n.IsScalar()) fail(quoted(field) + " must be an integer");
   try {
     return n.as<int>();
   } catch (const YAML::Exception&) {
-    throw std::invalid_argument("scene: '" + field + "' must be an integer");
+    fail(quoted(field) + " must be an integer");
   }
 }
 
 bool getBool(const YAML::Node& parent, const char* key, bool fallback, const std::string& where) {
   if (!parent[key]) return fallback;
   try {
+    if (!parent[key].IsScalar()) throw YAML::Exception(YAML::Mark::null_mark(), "not a scalar");
     return parent[key].as<bool>();
   } catch (const YAML::Exception&) {
-    throw std::invalid_argument("scene: '" + where + key + "' must be true or false");
+    fail("'" + where + key + "' must be true or false");
   }
+}
+
+// Optional booleans of one section: each present key overwrites its field.
+void readBools(const YAML::Node& section, const std::string& where,
+               std::initializer_list<std::pair<const char*, bool*>> fields) {
+  for (const auto& f : fields) *f.second = getBool(section, f.first, *f.second, where);
 }
 
 template <int N>
 Eigen::Matrix<Real, N, 1> getVec(const YAML::Node& n, const std::string& field) {
   if (!n || !n.IsSequence() || n.size() != N)
-    throw std::invalid_argument("scene: '" + field + "' must be a list of " + std::to_string(N) + " numbers");
+    fail(quoted(field) + " must be a list of " + std::to_string(N) + " numbers");
   Eigen::Matrix<Real, N, 1> v;
   for (int i = 0; i < N; ++i) v[i] = getReal(n[i], field);
   return v;
 }
 
+// A value from a fixed set of names, converted by `parse` (which throws std::invalid_argument).
+template <typename T, typename Parse>
+T getEnum(const YAML::Node& n, const std::string& field, Parse parse) {
+  const std::string name = getString(n, field);
+  try {
+    return parse(name);
+  } catch (const std::invalid_argument& e) {
+    fail(quoted(field) + ": " + e.what());
+  }
+}
+
 HoldPoint parseHold(const YAML::Node& n) {
   HoldPoint h;
   if (n.IsScalar()) {
-    h.name = n.as<std::string>();
+    h.name = n.Scalar();
   } else {
     h.position = getVec<2>(n, "hold.points[]");
   }
   return h;
 }
 
+NamedPoint parseNamedPoint(const YAML::Node& key, const YAML::Node& v) {
+  NamedPoint p;
+  p.name = getString(key, "textile.named_points");
+  const std::string field = "textile.named_points." + p.name;
+  p.kind = "grasp";
+  if (v.IsMap()) {
+    checkKeys(v, field, {"position", "kind"});
+    requireKey(v, "position", field);
+    p.position = getVec<2>(v["position"], field + ".position");
+    if (v["kind"]) p.kind = getString(v["kind"], field + ".kind");
+  } else {
+    p.position = getVec<2>(v, field);
+  }
+  return p;
+}
+
 TextileOutline parseTextile(const YAML::Node& n) {
-  if (n.IsScalar()) return presetTextile(n.as<std::string>());
-  if (!n.IsMap() || !n["outline"]) throw std::invalid_argument("scene: 'textile' must be a preset name or a map with 'outline'");
+  if (n.IsScalar()) return presetTextile(n.Scalar());
+  if (!n.IsMap()) fail("'textile' must be a preset name or a map with 'outline'");
+  checkKeys(n, "textile", {"name", "outline", "mirror_x", "named_points"});
+  requireKey(n, "outline", "textile");
   TextileOutline t;
   t.name = n["name"] ? getString(n["name"], "textile.name") : "custom";
+  checkList(n["outline"], "textile.outline", kMaxOutlineVertices);
   for (const auto& v : n["outline"]) t.outline.push_back(getVec<2>(v, "textile.outline[]"));
   if (n["mirror_x"]) {
     t.mirrored = true;
     t.mirror_x = getReal(n["mirror_x"], "textile.mirror_x");
   }
-  if (n["named_points"]) {
-    for (const auto& it : n["named_points"]) {
-      NamedPoint p;
-      p.name = getString(it.first, "textile.named_points");
-      const YAML::Node& v = it.second;
-      if (v.IsMap()) {
-        p.position = getVec<2>(v["position"], "textile.named_points." + p.name);
-        p.kind = v["kind"] ? getString(v["kind"], "textile.named_points." + p.name + ".kind") : "grasp";
-      } else {
-        p.position = getVec<2>(v, "textile.named_points." + p.name);
-        p.kind = "grasp";
-      }
-      t.named_points.push_back(p);
-    }
+  if (const YAML::Node points = n["named_points"]) {
+    if (!points.IsMap()) fail("'textile.named_points' must be a map of name: [x, y]");
+    if (points.size() > kMaxNamedPoints)
+      fail("'textile.named_points' has " + std::to_string(points.size()) + " points, more than the limit of " +
+           std::to_string(kMaxNamedPoints));
+    for (const auto& it : points) t.named_points.push_back(parseNamedPoint(it.first, it.second));
   }
   return t;
+}
+
+Material parseMaterial(const YAML::Node& n, const std::string& base_dir) {
+  const std::string m = getString(n, "material");
+  if (m == "cotton") return Material::cotton();
+  const std::string path = (!m.empty() && m[0] == '/') ? m : base_dir + "/" + m;
+  return loadMaterialYaml(path);
+}
+
+void parseHoldSection(const YAML::Node& h, bool has_regions, DrapeSceneSpec& s) {
+  checkKeys(h, "hold", {"points", "position", "lift"});
+  if (!has_regions) requireKey(h, "points", "hold");
+  if (const YAML::Node points = h["points"]) {
+    checkList(points, "hold.points", kMaxSceneListLength);
+    for (const auto& p : points) s.hold.push_back(parseHold(p));
+    if (s.hold.empty() && !has_regions) fail("'hold.points' is empty and there are no pinned_regions: nothing holds the textile");
+  }
+  if (h["position"]) s.hold_position = getVec<3>(h["position"], "hold.position");
+  if (const YAML::Node lift = h["lift"]) {
+    checkList(lift, "hold.lift", kMaxSceneListLength);
+    for (const auto& w : lift) {
+      const auto v = getVec<4>(w, "hold.lift[]");
+      s.lift_times.push_back(v[0]);
+      s.lift_offsets.push_back(v.tail<3>());
+    }
+  }
+}
+
+void parseChoiKoKeys(const YAML::Node& m, DrapeSceneSpec& s) {
+  // The switches of the particle model apply to the Choi-Ko model too, plus its own keys (docs/choi_ko.md).
+  ChoiKoOptions& ck = s.choi_ko_options;
+  ck.gravity = s.model_options.gravity;
+  ck.drag = s.model_options.drag;
+  ck.shear = s.model_options.shear;
+  ck.bending = s.model_options.bending;
+  ck.settle_damping = m["settle_damping_per_s"] ? s.model_options.settle_damping : ck.settle_damping;
+  if (m["bending_version"]) {
+    const std::string b = getString(m["bending_version"], "model.bending_version");
+    if (b == "beam") ck.bending_version = ChoiKoBending::kBeam;
+    else if (b == "plate") ck.bending_version = ChoiKoBending::kPlate;
+    else fail("'model.bending_version' must be beam or plate");
+  }
+  if (m["bending_jacobian"]) {
+    const std::string j = getString(m["bending_jacobian"], "model.bending_jacobian");
+    if (j == "secant") ck.bending_jacobian = choi_ko::BendingJacobian::kSecant;
+    else if (j == "drop_negative") ck.bending_jacobian = choi_ko::BendingJacobian::kDropNegative;
+    else if (j == "exact") ck.bending_jacobian = choi_ko::BendingJacobian::kExact;
+    else fail("'model.bending_jacobian' must be secant, drop_negative or exact");
+  }
+  ck.buckling_onset = positive(m, "buckling_onset", ck.buckling_onset, "model.");
+  if (!(ck.buckling_onset < 1)) fail("'model.buckling_onset' must be < 1");
+  ck.tensile_stiffness = positive(m, "tensile_stiffness_N_m", ck.tensile_stiffness, "model.");
+  ck.reference_strain = positive(m, "reference_strain", ck.reference_strain, "model.");
+}
+
+void parseModel(const YAML::Node& m, DrapeSceneSpec& s) {
+  checkKeys(m, "model", {"name", "jacobian", "gravity", "drag", "shear", "bending", "settle_damping_per_s",
+                         "bending_version", "bending_jacobian", "buckling_onset", "tensile_stiffness_N_m",
+                         "reference_strain"});
+  if (m["name"]) s.model = getString(m["name"], "model.name");
+  if (m["jacobian"]) {
+    const std::string j = getString(m["jacobian"], "model.jacobian");
+    if (j == "exact") s.model_options.jacobian = JacobianMode::kExact;
+    else if (j == "definite_fix") s.model_options.jacobian = JacobianMode::kDefiniteFix;
+    else fail("'model.jacobian' must be exact or definite_fix");
+  }
+  readBools(m, "model.",
+            {{"gravity", &s.model_options.gravity}, {"drag", &s.model_options.drag},
+             {"shear", &s.model_options.shear}, {"bending", &s.model_options.bending}});
+  if (m["settle_damping_per_s"]) {
+    s.model_options.settle_damping = getReal(m["settle_damping_per_s"], "model.settle_damping_per_s");
+    if (!(s.model_options.settle_damping >= 0)) fail("'model.settle_damping_per_s' must be >= 0");
+  }
+  parseChoiKoKeys(m, s);
+}
+
+void parseSolverKeys(const YAML::Node& m, SolverSettings& solver) {
+  solver.relative_tolerance = positive(m, "cg_tolerance", solver.relative_tolerance, "simulation.");
+  if (!(solver.relative_tolerance < 1)) fail("'simulation.cg_tolerance' must be < 1");
+  if (m["cg_max_iterations"]) solver.max_iterations = getInt(m["cg_max_iterations"], "simulation.cg_max_iterations");
+  if (solver.max_iterations < 1) fail("'simulation.cg_max_iterations' must be >= 1");
+  if (m["linear_solver"])
+    solver.kind = getEnum<LinearSolverKind>(m["linear_solver"], "simulation.linear_solver", linearSolverFromString);
+  if (m["preconditioner"])
+    solver.preconditioner =
+        getEnum<PreconditionerKind>(m["preconditioner"], "simulation.preconditioner", preconditionerFromString);
+  solver.warm_start = getBool(m, "cg_warm_start", solver.warm_start, "simulation.");
+  if (m["cg_smoothing_steps"]) {
+    solver.smoothing_steps = getInt(m["cg_smoothing_steps"], "simulation.cg_smoothing_steps");
+    if (solver.smoothing_steps < 0) fail("'simulation.cg_smoothing_steps' must be >= 0");
+  }
+  if (m["cg_smoothing_weight"]) {
+    solver.smoothing_weight = positive(m, "cg_smoothing_weight", solver.smoothing_weight, "simulation.");
+    if (!(solver.smoothing_weight < 1.0)) fail("'simulation.cg_smoothing_weight' must be in (0, 1)");
+  }
+  if (m["cg_accept_tolerance"]) {
+    solver.accept_tolerance = getReal(m["cg_accept_tolerance"], "simulation.cg_accept_tolerance");
+    if (!(solver.accept_tolerance >= 0 && solver.accept_tolerance < 1))
+      fail("'simulation.cg_accept_tolerance' must be in [0, 1)");
+  }
+}
+
+void parseSimulation(const YAML::Node& m, SimulationSettings& t) {
+  checkKeys(m, "simulation",
+            {"integrator", "policy", "dt_s", "dt_min_s", "dt_max_s", "error_tolerance_m", "max_time_s",
+             "max_wall_time_s", "rest_speed_m_s", "rest_mean_speed_m_s", "rest_duration_s", "max_edge_stretch",
+             "cg_tolerance", "cg_max_iterations", "linear_solver", "preconditioner", "cg_warm_start",
+             "cg_smoothing_steps", "cg_smoothing_weight", "cg_accept_tolerance", "trajectory_every"});
+  if (m["integrator"]) t.integrator = getEnum<IntegratorType>(m["integrator"], "simulation.integrator", integratorFromString);
+  if (m["policy"]) t.policy = getEnum<StepPolicy>(m["policy"], "simulation.policy", stepPolicyFromString);
+  readPositives(m, "simulation.",
+                {{"dt_s", &t.dt}, {"dt_min_s", &t.dt_min}, {"dt_max_s", &t.dt_max},
+                 {"error_tolerance_m", &t.error_tolerance}, {"max_time_s", &t.max_time},
+                 {"max_wall_time_s", &t.max_wall_time}, {"rest_speed_m_s", &t.rest_speed},
+                 {"rest_mean_speed_m_s", &t.rest_mean_speed}, {"rest_duration_s", &t.rest_duration},
+                 {"max_edge_stretch", &t.max_edge_stretch}});
+  parseSolverKeys(m, t.solver);
+  if (m["trajectory_every"]) t.trajectory_every = getInt(m["trajectory_every"], "simulation.trajectory_every");
+  if (t.trajectory_every < 0) fail("'simulation.trajectory_every' must be >= 0");
+}
+
+void parseCollision(const YAML::Node& c, DrapeSceneSpec& s) {
+  checkKeys(c, "collision",
+            {"self", "response", "max_passes", "d_min_m", "include_diagonals", "point_in_triangle_check",
+             "fallback_rollback", "restitution", "tangential_damping", "cell_size_factor", "proximity",
+             "proximity_propagate", "proximity_edges", "contact_forces", "thickness_factor",
+             "proximity_search_factor", "proximity_friction", "proximity_separation", "proximity_iterations"});
+  SelfCollisionOptions& o = s.collision;
+  if (c["self"]) {
+    const std::string v = getString(c["self"], "collision.self");
+    s.self_collision = !(v == "off" || v == "false" || v == "none");
+    if (s.self_collision) {
+      try {
+        o.version = selfCollisionVersionFromString(v);
+      } catch (const std::invalid_argument& e) {
+        fail(std::string("'collision.self': ") + e.what() + " (or off)");
+      }
+    }
+  }
+  if (c["response"]) {
+    const std::string r = getString(c["response"], "collision.response");
+    if (r == "stop") o.response = CollisionResponse::kStop;
+    else if (r == "thesis") o.response = CollisionResponse::kThesis;
+    else if (r == "relative") o.response = CollisionResponse::kRelative;
+    else fail("'collision.response' must be stop, thesis or relative");
+  }
+  if (c["max_passes"]) {
+    o.max_passes = getInt(c["max_passes"], "collision.max_passes");
+    if (o.max_passes < 1) fail("'collision.max_passes' must be >= 1");
+  }
+  // Proximity stage keys (persistent contact) too; their ranges are checked by the pass constructor.
+  readPositives(c, "collision.",
+                {{"d_min_m", &o.d_min}, {"cell_size_factor", &o.cell_size_factor},
+                 {"thickness_factor", &o.thickness_factor}, {"proximity_search_factor", &o.proximity_search_factor}});
+  readBools(c, "collision.",
+            {{"include_diagonals", &o.include_diagonals}, {"point_in_triangle_check", &o.point_in_triangle_check},
+             {"fallback_rollback", &o.fallback_rollback}, {"proximity", &o.proximity},
+             {"proximity_propagate", &o.proximity_propagate}, {"proximity_edges", &o.proximity_edges},
+             {"contact_forces", &o.contact_forces}});
+  for (const char* key : {"restitution", "tangential_damping"}) {
+    if (!c[key]) continue;
+    const Real v = getReal(c[key], std::string("collision.") + key);
+    if (!(v >= 0 && v <= 1)) fail(std::string("'collision.") + key + "' must be in [0, 1]");
+    (std::string(key) == "restitution" ? o.restitution : o.tangential_damping) = v;
+  }
+  if (c["proximity_friction"]) o.proximity_friction = getReal(c["proximity_friction"], "collision.proximity_friction");
+  if (c["proximity_separation"])
+    o.proximity_separation = getReal(c["proximity_separation"], "collision.proximity_separation");
+  if (c["proximity_iterations"])
+    o.proximity_iterations = getInt(c["proximity_iterations"], "collision.proximity_iterations");
+}
+
+BoxObstacle parseBox(const YAML::Node& b) {
+  BoxObstacle q;
+  if (b.IsMap() && (b["min"] || b["max"])) {
+    checkKeys(b, "obstacles.boxes[]", {"min", "max"});
+    const Vec3 lo = getVec<3>(b["min"], "obstacles.boxes[].min");
+    const Vec3 hi = getVec<3>(b["max"], "obstacles.boxes[].max");
+    if (!((hi - lo).array() > 0).all()) fail("'obstacles.boxes[]': max must exceed min on every axis");
+    return BoxObstacle::axisAligned(lo, hi);
+  }
+  checkKeys(b, "obstacles.boxes[]", {"min", "max", "centre", "half_extents", "yaw_rad"});
+  q.centre = getVec<3>(b["centre"], "obstacles.boxes[].centre");
+  q.half_extents = getVec<3>(b["half_extents"], "obstacles.boxes[].half_extents");
+  if (!(q.half_extents.array() > 0).all()) fail("'obstacles.boxes[].half_extents' must be positive");
+  if (b["yaw_rad"]) {
+    const Real yaw = getReal(b["yaw_rad"], "obstacles.boxes[].yaw_rad");
+    q.rotation = Eigen::AngleAxis<Real>(yaw, Vec3::UnitZ()).toRotationMatrix();
+  }
+  return q;
+}
+
+void parseObstacles(const YAML::Node& ob, ObstacleSpec& o) {
+  checkKeys(ob, "obstacles", {"contact_distance_m", "friction", "planes", "boxes", "spheres"});
+  if (ob["contact_distance_m"]) {
+    o.options.contact_distance = getReal(ob["contact_distance_m"], "obstacles.contact_distance_m");
+    if (!(o.options.contact_distance >= 0)) fail("'obstacles.contact_distance_m' must be >= 0");
+  }
+  if (ob["friction"]) {
+    o.options.friction = getReal(ob["friction"], "obstacles.friction");
+    if (!(o.options.friction >= 0)) fail("'obstacles.friction' must be >= 0");
+  }
+  auto list = [&](const char* key) {
+    const YAML::Node l = ob[key];
+    if (l) checkList(l, std::string("obstacles.") + key, kMaxSceneListLength);
+    return l;
+  };
+  for (const auto& p : list("planes")) {
+    checkKeys(p, "obstacles.planes[]", {"point", "normal"});
+    PlaneObstacle q;
+    q.point = getVec<3>(p["point"], "obstacles.planes[].point");
+    q.normal = getVec<3>(p["normal"], "obstacles.planes[].normal");
+    if (!(q.normal.norm() > 1e-12)) fail("'obstacles.planes[].normal' is zero");
+    o.planes.push_back(q);
+  }
+  for (const auto& b : list("boxes")) o.boxes.push_back(parseBox(b));
+  for (const auto& sp : list("spheres")) {
+    checkKeys(sp, "obstacles.spheres[]", {"centre", "radius_m"});
+    SphereObstacle q;
+    q.centre = getVec<3>(sp["centre"], "obstacles.spheres[].centre");
+    if (!sp["radius_m"]) fail("'obstacles.spheres[].radius_m' is missing");
+    q.radius = positive(sp, "radius_m", 0, "obstacles.spheres[].");
+    o.spheres.push_back(q);
+  }
+}
+
+void parseSceneRoot(const YAML::Node& root, const std::string& base_dir, DrapeSceneSpec& s) {
+  checkKeys(root, "", {"textile", "material", "spacing_m", "hold", "pinned_regions", "model", "simulation",
+                       "collision", "obstacles"});
+  for (const char* key : {"textile", "material", "spacing_m", "hold"}) requireKey(root, key, "");
+  s.textile = parseTextile(root["textile"]);
+  s.material = parseMaterial(root["material"], base_dir);
+  s.spacing = positive(root, "spacing_m", s.spacing, "");
+  if (const YAML::Node regions = root["pinned_regions"]) {
+    checkList(regions, "pinned_regions", kMaxSceneListLength);
+    for (const auto& r : regions) s.pinned_regions.push_back(getVec<4>(r, "pinned_regions[]"));
+  }
+  parseHoldSection(root["hold"], !s.pinned_regions.empty(), s);
+  if (const YAML::Node m = root["model"]) parseModel(m, s);
+  if (const YAML::Node m = root["simulation"]) parseSimulation(m, s.settings);
+  if (const YAML::Node c = root["collision"]) parseCollision(c, s);
+  if (const YAML::Node ob = root["obstacles"]) parseObstacles(ob, s.obstacles);
 }
 
 }  // namespace
 
 DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& base_dir) {
+  const std::string too_large = textSizeError("scene text", text.size(), kMaxYamlDocumentBytes);
+  if (!too_large.empty()) fail(too_large);
   YAML::Node root;
   try {
     root = YAML::Load(text);
   } catch (const YAML::Exception& e) {
-    throw std::invalid_argument(std::string("scene: malformed YAML: ") + e.what());
+    fail(std::string("malformed YAML: ") + e.what());
   }
-  if (!root.IsMap()) throw std::invalid_argument("scene: top level must be a map");
+  if (!root.IsMap()) fail("top level must be a map");
   DrapeSceneSpec s;
   try {
-    if (root["textile"]) s.textile = parseTextile(root["textile"]);
-    if (root["material"]) {
-      const std::string m = getString(root["material"], "material");
-      if (m == "cotton") {
-        s.material = Material::cotton();
-      } else {
-        const std::string path = (!m.empty() && m[0] == '/') ? m : base_dir + "/" + m;
-        s.material = loadMaterialYaml(path);
-      }
-    }
-    s.spacing = positive(root, "spacing_m", s.spacing, "");
-    if (const YAML::Node h = root["hold"]) {
-      if (h["points"]) {
-        for (const auto& p : h["points"]) s.hold.push_back(parseHold(p));
-      }
-      if (h["position"]) s.hold_position = getVec<3>(h["position"], "hold.position");
-      if (h["lift"]) {
-        for (const auto& w : h["lift"]) {
-          const auto v = getVec<4>(w, "hold.lift[]");
-          s.lift_times.push_back(v[0]);
-          s.lift_offsets.push_back(v.tail<3>());
-        }
-      }
-    } else {
-      s.hold.push_back(HoldPoint{"corner_ul", Vec2::Zero()});
-    }
-    if (root["pinned_regions"])
-      for (const auto& r : root["pinned_regions"]) s.pinned_regions.push_back(getVec<4>(r, "pinned_regions[]"));
-    if (const YAML::Node m = root["model"]) {
-      if (m["name"]) s.model = getString(m["name"], "model.name");
-      if (m["jacobian"]) {
-        const std::string j = getString(m["jacobian"], "model.jacobian");
-        if (j == "exact") s.model_options.jacobian = JacobianMode::kExact;
-        else if (j == "definite_fix") s.model_options.jacobian = JacobianMode::kDefiniteFix;
-        else throw std::invalid_argument("scene: 'model.jacobian' must be exact or definite_fix");
-      }
-      s.model_options.gravity = getBool(m, "gravity", true, "model.");
-      s.model_options.drag = getBool(m, "drag", true, "model.");
-      s.model_options.shear = getBool(m, "shear", true, "model.");
-      s.model_options.bending = getBool(m, "bending", true, "model.");
-      if (m["settle_damping_per_s"]) {
-        s.model_options.settle_damping = getReal(m["settle_damping_per_s"], "model.settle_damping_per_s");
-        if (!(s.model_options.settle_damping >= 0))
-          throw std::invalid_argument("scene: 'model.settle_damping_per_s' must be >= 0");
-      }
-      // The same switches for the Choi-Ko model, plus its own keys (docs/choi_ko.md).
-      ChoiKoOptions& ck = s.choi_ko_options;
-      ck.gravity = s.model_options.gravity;
-      ck.drag = s.model_options.drag;
-      ck.shear = s.model_options.shear;
-      ck.bending = s.model_options.bending;
-      ck.settle_damping = m["settle_damping_per_s"] ? s.model_options.settle_damping : ck.settle_damping;
-      if (m["bending_version"]) {
-        const std::string b = getString(m["bending_version"], "model.bending_version");
-        if (b == "beam") ck.bending_version = ChoiKoBending::kBeam;
-        else if (b == "plate") ck.bending_version = ChoiKoBending::kPlate;
-        else throw std::invalid_argument("scene: 'model.bending_version' must be beam or plate");
-      }
-      if (m["bending_jacobian"]) {
-        const std::string j = getString(m["bending_jacobian"], "model.bending_jacobian");
-        if (j == "secant") ck.bending_jacobian = choi_ko::BendingJacobian::kSecant;
-        else if (j == "drop_negative") ck.bending_jacobian = choi_ko::BendingJacobian::kDropNegative;
-        else if (j == "exact") ck.bending_jacobian = choi_ko::BendingJacobian::kExact;
-        else throw std::invalid_argument("scene: 'model.bending_jacobian' must be secant, drop_negative or exact");
-      }
-      ck.buckling_onset = positive(m, "buckling_onset", ck.buckling_onset, "model.");
-      if (!(ck.buckling_onset < 1)) throw std::invalid_argument("scene: 'model.buckling_onset' must be < 1");
-      ck.tensile_stiffness = positive(m, "tensile_stiffness_N_m", ck.tensile_stiffness, "model.");
-      ck.reference_strain = positive(m, "reference_strain", ck.reference_strain, "model.");
-    }
-    if (const YAML::Node m = root["simulation"]) {
-      SimulationSettings& t = s.settings;
-      if (m["integrator"]) {
-        const std::string name = getString(m["integrator"], "simulation.integrator");
-        try {
-          t.integrator = integratorFromString(name);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(std::string("scene: 'simulation.integrator': ") + e.what());
-        }
-      }
-      if (m["policy"]) {
-        const std::string name = getString(m["policy"], "simulation.policy");
-        try {
-          t.policy = stepPolicyFromString(name);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(std::string("scene: 'simulation.policy': ") + e.what());
-        }
-      }
-      t.dt = positive(m, "dt_s", t.dt, "simulation.");
-      t.dt_min = positive(m, "dt_min_s", t.dt_min, "simulation.");
-      t.dt_max = positive(m, "dt_max_s", t.dt_max, "simulation.");
-      t.error_tolerance = positive(m, "error_tolerance_m", t.error_tolerance, "simulation.");
-      t.max_time = positive(m, "max_time_s", t.max_time, "simulation.");
-      t.max_wall_time = positive(m, "max_wall_time_s", t.max_wall_time, "simulation.");
-      t.rest_speed = positive(m, "rest_speed_m_s", t.rest_speed, "simulation.");
-      t.rest_mean_speed = positive(m, "rest_mean_speed_m_s", t.rest_mean_speed, "simulation.");
-      t.rest_duration = positive(m, "rest_duration_s", t.rest_duration, "simulation.");
-      t.max_edge_stretch = positive(m, "max_edge_stretch", t.max_edge_stretch, "simulation.");
-      t.solver.relative_tolerance = positive(m, "cg_tolerance", t.solver.relative_tolerance, "simulation.");
-      if (m["cg_max_iterations"]) t.solver.max_iterations = getInt(m["cg_max_iterations"], "simulation.cg_max_iterations");
-      if (m["linear_solver"]) {
-        const std::string name = getString(m["linear_solver"], "simulation.linear_solver");
-        try {
-          t.solver.kind = linearSolverFromString(name);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(std::string("scene: 'simulation.linear_solver': ") + e.what());
-        }
-      }
-      if (m["preconditioner"]) {
-        const std::string name = getString(m["preconditioner"], "simulation.preconditioner");
-        try {
-          t.solver.preconditioner = preconditionerFromString(name);
-        } catch (const std::invalid_argument& e) {
-          throw std::invalid_argument(std::string("scene: 'simulation.preconditioner': ") + e.what());
-        }
-      }
-      t.solver.warm_start = getBool(m, "cg_warm_start", t.solver.warm_start, "simulation.");
-      if (m["cg_smoothing_steps"]) {
-        t.solver.smoothing_steps = getInt(m["cg_smoothing_steps"], "simulation.cg_smoothing_steps");
-        if (t.solver.smoothing_steps < 0)
-          throw std::invalid_argument("scene: 'simulation.cg_smoothing_steps' must be >= 0");
-      }
-      if (m["cg_smoothing_weight"]) {
-        t.solver.smoothing_weight = positive(m, "cg_smoothing_weight", t.solver.smoothing_weight, "simulation.");
-        if (!(t.solver.smoothing_weight < 1.0))
-          throw std::invalid_argument("scene: 'simulation.cg_smoothing_weight' must be in (0, 1)");
-      }
-      if (m["cg_accept_tolerance"]) {
-        t.solver.accept_tolerance = getReal(m["cg_accept_tolerance"], "simulation.cg_accept_tolerance");
-        if (!(t.solver.accept_tolerance >= 0 && t.solver.accept_tolerance < 1))
-          throw std::invalid_argument("scene: 'simulation.cg_accept_tolerance' must be in [0, 1)");
-      }
-      if (!(t.solver.relative_tolerance < 1))
-        throw std::invalid_argument("scene: 'simulation.cg_tolerance' must be < 1");
-      if (m["trajectory_every"]) t.trajectory_every = getInt(m["trajectory_every"], "simulation.trajectory_every");
-      if (t.solver.max_iterations < 1) throw std::invalid_argument("scene: 'simulation.cg_max_iterations' must be >= 1");
-      if (t.trajectory_every < 0) throw std::invalid_argument("scene: 'simulation.trajectory_every' must be >= 0");
-    }
-    if (const YAML::Node c = root["collision"]) {
-      if (!c.IsMap()) throw std::invalid_argument("scene: 'collision' must be a map");
-      SelfCollisionOptions& o = s.collision;
-      if (c["self"]) {
-        const std::string v = getString(c["self"], "collision.self");
-        if (v == "off" || v == "false" || v == "none") {
-          s.self_collision = false;
-        } else {
-          try {
-            o.version = selfCollisionVersionFromString(v);
-          } catch (const std::invalid_argument& e) {
-            throw std::invalid_argument(std::string("scene: 'collision.self': ") + e.what() + " (or off)");
-          }
-          s.self_collision = true;
-        }
-      }
-      if (c["response"]) {
-        const std::string r = getString(c["response"], "collision.response");
-        if (r == "stop") o.response = CollisionResponse::kStop;
-        else if (r == "thesis") o.response = CollisionResponse::kThesis;
-        else if (r == "relative") o.response = CollisionResponse::kRelative;
-        else throw std::invalid_argument("scene: 'collision.response' must be stop, thesis or relative");
-      }
-      if (c["max_passes"]) {
-        o.max_passes = getInt(c["max_passes"], "collision.max_passes");
-        if (o.max_passes < 1) throw std::invalid_argument("scene: 'collision.max_passes' must be >= 1");
-      }
-      o.d_min = positive(c, "d_min_m", o.d_min, "collision.");
-      o.include_diagonals = getBool(c, "include_diagonals", o.include_diagonals, "collision.");
-      o.point_in_triangle_check = getBool(c, "point_in_triangle_check", o.point_in_triangle_check, "collision.");
-      o.fallback_rollback = getBool(c, "fallback_rollback", o.fallback_rollback, "collision.");
-      for (const char* key : {"restitution", "tangential_damping"}) {
-        if (!c[key]) continue;
-        const Real v = getReal(c[key], std::string("collision.") + key);
-        if (!(v >= 0 && v <= 1)) throw std::invalid_argument(std::string("scene: 'collision.") + key + "' must be in [0, 1]");
-        (std::string(key) == "restitution" ? o.restitution : o.tangential_damping) = v;
-      }
-      o.cell_size_factor = positive(c, "cell_size_factor", o.cell_size_factor, "collision.");
-      // Proximity stage (persistent contact); ranges are checked by the pass constructor.
-      o.proximity = getBool(c, "proximity", o.proximity, "collision.");
-      o.proximity_propagate = getBool(c, "proximity_propagate", o.proximity_propagate, "collision.");
-      o.proximity_edges = getBool(c, "proximity_edges", o.proximity_edges, "collision.");
-      o.contact_forces = getBool(c, "contact_forces", o.contact_forces, "collision.");
-      o.thickness_factor = positive(c, "thickness_factor", o.thickness_factor, "collision.");
-      o.proximity_search_factor = positive(c, "proximity_search_factor", o.proximity_search_factor, "collision.");
-      o.proximity_friction = c["proximity_friction"] ? getReal(c["proximity_friction"], "collision.proximity_friction")
-                                                     : o.proximity_friction;
-      o.proximity_separation = c["proximity_separation"]
-                                   ? getReal(c["proximity_separation"], "collision.proximity_separation")
-                                   : o.proximity_separation;
-      if (c["proximity_iterations"])
-        o.proximity_iterations = getInt(c["proximity_iterations"], "collision.proximity_iterations");
-    }
-    if (const YAML::Node ob = root["obstacles"]) {
-      if (!ob.IsMap()) throw std::invalid_argument("scene: 'obstacles' must be a map");
-      ObstacleSpec& o = s.obstacles;
-      if (ob["contact_distance_m"]) {
-        o.options.contact_distance = getReal(ob["contact_distance_m"], "obstacles.contact_distance_m");
-        if (!(o.options.contact_distance >= 0))
-          throw std::invalid_argument("scene: 'obstacles.contact_distance_m' must be >= 0");
-      }
-      if (ob["friction"]) {
-        o.options.friction = getReal(ob["friction"], "obstacles.friction");
-        if (!(o.options.friction >= 0)) throw std::invalid_argument("scene: 'obstacles.friction' must be >= 0");
-      }
-      auto list = [&](const char* key) {
-        const YAML::Node l = ob[key];
-        if (l && !l.IsSequence())
-          throw std::invalid_argument(std::string("scene: 'obstacles.") + key + "' must be a list");
-        return l;
-      };
-      for (const auto& p : list("planes")) {
-        PlaneObstacle q;
-        q.point = getVec<3>(p["point"], "obstacles.planes[].point");
-        q.normal = getVec<3>(p["normal"], "obstacles.planes[].normal");
-        if (!(q.normal.norm() > 1e-12)) throw std::invalid_argument("scene: 'obstacles.planes[].normal' is zero");
-        o.planes.push_back(q);
-      }
-      for (const auto& b : list("boxes")) {
-        BoxObstacle q;
-        if (b["min"] || b["max"]) {
-          const Vec3 lo = getVec<3>(b["min"], "obstacles.boxes[].min");
-          const Vec3 hi = getVec<3>(b["max"], "obstacles.boxes[].max");
-          if (!((hi - lo).array() > 0).all())
-            throw std::invalid_argument("scene: 'obstacles.boxes[]': max must exceed min on every axis");
-          q = BoxObstacle::axisAligned(lo, hi);
-        } else {
-          q.centre = getVec<3>(b["centre"], "obstacles.boxes[].centre");
-          q.half_extents = getVec<3>(b["half_extents"], "obstacles.boxes[].half_extents");
-          if (!(q.half_extents.array() > 0).all())
-            throw std::invalid_argument("scene: 'obstacles.boxes[].half_extents' must be positive");
-          if (b["yaw_rad"]) {
-            const Real yaw = getReal(b["yaw_rad"], "obstacles.boxes[].yaw_rad");
-            q.rotation = Eigen::AngleAxis<Real>(yaw, Vec3::UnitZ()).toRotationMatrix();
-          }
-        }
-        o.boxes.push_back(q);
-      }
-      for (const auto& sp : list("spheres")) {
-        SphereObstacle q;
-        q.centre = getVec<3>(sp["centre"], "obstacles.spheres[].centre");
-        q.radius = positive(sp, "radius_m", 0, "obstacles.spheres[].");
-        if (!sp["radius_m"]) throw std::invalid_argument("scene: 'obstacles.spheres[].radius_m' is missing");
-        o.spheres.push_back(q);
-      }
-    }
+    parseSceneRoot(root, base_dir, s);
   } catch (const YAML::Exception& e) {
-    throw std::invalid_argument(std::string("scene: wrong type: ") + e.what());
+    fail(std::string("wrong type: ") + e.what());
   } catch (const MaterialError& e) {
-    throw std::invalid_argument(std::string("scene: material: ") + e.what());
+    fail(std::string("material: ") + e.what());
   }
   return s;
 }
 
 DrapeSceneSpec loadDrapeSceneYaml(const std::string& path) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (!f) throw std::invalid_argument("scene: cannot open " + path);
-  std::string text;
-  char buf[4096];
-  size_t k;
-  while ((k = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, k);
-  std::fclose(f);
+  std::string text, error;
+  if (!readBoundedTextFile(path, kMaxYamlDocumentBytes, &text, &error)) fail(error);
   const auto slash = path.find_last_of('/');
   return parseDrapeSceneYaml(text, slash == std::string::npos ? "." : path.substr(0, slash));
 }

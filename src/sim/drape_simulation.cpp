@@ -1,5 +1,7 @@
 #include "textile_handling/sim/drape_simulation.h"
 
+#include "textile_handling/sim/output_files.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -327,14 +329,11 @@ void DrapeSimulation::save(const std::string& path) const {
   const std::vector<Real> solver = integrator_->solverState();
   writeVec(os, "solver_state", Eigen::Map<const VecX>(solver.data(), static_cast<Index>(solver.size())));
   os << "end\n";
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream f(tmp, std::ios::trunc);
-    if (!f) throw std::runtime_error("drape state: cannot write " + tmp);
-    f << os.str();
-    if (!f.good()) throw std::runtime_error("drape state: write failed for " + tmp);
+  try {
+    writeFileAtomically(path, [&](std::ostream& f) { f << os.str(); });
+  } catch (const OutputError& e) {
+    throw OutputError(std::string("drape state: ") + e.what());
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) throw std::runtime_error("drape state: cannot rename to " + path);
 }
 
 void DrapeSimulation::load(const std::string& path) {

@@ -1,6 +1,8 @@
 // Material curves, the cotton material of the thesis, and YAML I/O.
 #include "textile_handling/sim/material.h"
 
+#include "textile_handling/sim/text_input.h"
+
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
@@ -348,6 +350,13 @@ class Parser {
     }
   }
 
+  // Lists are bounded before anything is copied (kMaxMaterialListLength, docs/materials.md).
+  void checkListLength(const YAML::Node& node, const std::string& field) const {
+    if (node.size() > kMaxMaterialListLength)
+      fail(field, "has " + std::to_string(node.size()) + " items, more than the limit of " +
+                      std::to_string(kMaxMaterialListLength), &node);
+  }
+
   Real number(const YAML::Node& node, const std::string& field) const {
     if (!node.IsDefined() || node.IsNull()) fail(field, "missing value (expected a number)", &node);
     if (!node.IsScalar()) fail(field, "expected a number, got a " + typeName(node), &node);
@@ -365,6 +374,7 @@ class Parser {
     if (!node.IsDefined() || node.IsNull()) fail(field, "missing value (expected a list of numbers)", &node);
     if (!node.IsSequence())
       fail(field, "expected a list of numbers, got a " + typeName(node), &node);
+    checkListLength(node, field);
     std::vector<Real> out;
     out.reserve(node.size());
     for (std::size_t i = 0; i < node.size(); ++i) {
@@ -391,6 +401,7 @@ class Parser {
       if (!pieces.IsDefined()) fail(field + ".pieces", "missing field", &node);
       if (!pieces.IsSequence())
         fail(field + ".pieces", "expected a list of coefficient lists, got a " + typeName(pieces), &pieces);
+      checkListLength(pieces, field + ".pieces");
       std::vector<std::vector<Real>> coeffs;
       for (std::size_t i = 0; i < pieces.size(); ++i) {
         const std::string pf = field + ".pieces[" + std::to_string(i) + "]";
@@ -464,6 +475,8 @@ class Parser {
   }
 
   Material parseText(const std::string& text) const {
+    const std::string too_large = textSizeError("material text", text.size(), kMaxYamlDocumentBytes);
+    if (!too_large.empty()) throw MaterialError(source_ + ": " + too_large);
     YAML::Node root;
     try {
       root = YAML::Load(text);
@@ -513,12 +526,10 @@ std::string curveToYaml(const MaterialCurve& c) {
 Material parseMaterialYaml(const std::string& text) { return Parser("<string>").parseText(text); }
 
 Material loadMaterialYaml(const std::string& path) {
-  std::ifstream in(path, std::ios::in | std::ios::binary);
-  if (!in) throw MaterialError(path + ": cannot open material file (" + std::strerror(errno) + ")");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw MaterialError(path + ": error while reading material file");
-  return Parser(path).parseText(ss.str());
+  std::string text, error;
+  if (!readBoundedTextFile(path, kMaxYamlDocumentBytes, &text, &error))
+    throw MaterialError(path + ": cannot read material file: " + error);
+  return Parser(path).parseText(text);
 }
 
 std::string materialToYaml(const Material& m) {

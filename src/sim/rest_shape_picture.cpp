@@ -1,5 +1,7 @@
 #include "textile_handling/sim/rest_shape_picture.h"
 
+#include "png_output.h"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -93,16 +95,7 @@ bool writeRestShapePicture(const std::string& path, const ParticleTopology& t, c
   drawView(canvas, cv::Rect(view_px, 0, view_px, view_px), t, x, cells, Vec3::UnitY(), Vec3::UnitZ(),
            -Vec3::UnitX(), lo, scale, highlight);
   cv::line(canvas, cv::Point(view_px, 0), cv::Point(view_px, view_px), cv::Scalar(180, 180, 180));
-  try {
-    if (!cv::imwrite(path, canvas)) {
-      if (error) *error = "picture: cannot write " + path;
-      return false;
-    }
-  } catch (const cv::Exception& e) {
-    if (error) *error = std::string("picture: ") + e.what();
-    return false;
-  }
-  return true;
+  return writePngFile(path, canvas, "picture", error);
 }
 
 }  // namespace textile_handling

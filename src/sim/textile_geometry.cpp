@@ -7,6 +7,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -48,6 +49,21 @@ std::string edgeName(std::size_t i, std::size_t n) {
 
 void setError(std::string* error, const std::string& message) {
   if (error != nullptr) *error = message;
+}
+
+// "textile 'NAME': " with the name cut to the allowed length (the name may not be validated yet).
+std::string textilePrefix(const TextileOutline& textile) {
+  const std::string& name = textile.name;
+  return "textile '" + (name.size() > kMaxTextileNameLength ? name.substr(0, kMaxTextileNameLength) + "..." : name) +
+         "': ";
+}
+
+// The outline size limit, checked before any work that grows with the outline.
+bool checkOutlineSize(const TextileOutline& textile, std::string* error) {
+  if (textile.outline.size() <= kMaxOutlineVertices) return true;
+  setError(error, textilePrefix(textile) + "outline has " + std::to_string(textile.outline.size()) +
+                      " vertices, more than the limit of " + std::to_string(kMaxOutlineVertices));
+  return false;
 }
 
 // Closed segments a-b and c-d intersect or come within `tol` of each other at
@@ -97,6 +113,50 @@ std::vector<Real> latticeLines(Real lo, Real hi, Real s) {
   }
   return lines;
 }
+
+// pointInPolygon() for the points of one horizontal line y = const (a grid row), with the same
+// arithmetic on the same edges in the same roles, so the answers are identical; only edges that can
+// matter at that height are tested. That keeps rasterisation O(rows * n + nodes * k) for an n-gon
+// instead of O(nodes * n), k being the few edges that cross or touch a row.
+class RowClassifier {
+ public:
+  RowClassifier(const std::vector<Vec2>& polygon, Real y, Real tolerance) : polygon_(polygon), tolerance_(tolerance) {
+    const std::size_t n = polygon.size();
+    // An edge whose y-range is farther from the row than this cannot be within `tolerance` of a row
+    // point, even after rounding (1 nm dwarfs double rounding of metre-scale coordinates).
+    const Real reach = 2 * tolerance + 1e-9;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec2& a = polygon[i];
+      const Vec2& b = polygon[(i + 1) % n];
+      if (std::min(a.y(), b.y()) - reach <= y && y <= std::max(a.y(), b.y()) + reach) near_.push_back(i);
+    }
+    for (std::size_t i = 0, j = n - 1; i < n; j = i++) {
+      if ((polygon[j].y() > y) != (polygon[i].y() > y)) crossing_.emplace_back(j, i);
+    }
+  }
+
+  bool inside(const Vec2& p) const {
+    const std::size_t n = polygon_.size();
+    if (n < 3) return false;
+    for (const std::size_t i : near_) {
+      if (pointSegmentDistance(p, polygon_[i], polygon_[(i + 1) % n]) <= tolerance_) return true;
+    }
+    bool inside = false;
+    for (const auto& [j, i] : crossing_) {
+      const Vec2& a = polygon_[j];
+      const Vec2& b = polygon_[i];
+      const Real x_cross = a.x() + (p.y() - a.y()) * (b.x() - a.x()) / (b.y() - a.y());
+      if (p.x() < x_cross) inside = !inside;
+    }
+    return inside;
+  }
+
+ private:
+  const std::vector<Vec2>& polygon_;
+  Real tolerance_;
+  std::vector<std::size_t> near_;                            // boundary candidates: edge i runs i -> i+1
+  std::vector<std::pair<std::size_t, std::size_t>> crossing_;  // (j, i): edges from vertex j to i crossing y
+};
 
 // Accepts points unless they lie within `radius` of an already accepted point.
 // A hash of square cells with side `radius` keeps this O(1) per point.
@@ -222,8 +282,106 @@ bool pointInPolygon(const std::vector<Vec2>& polygon, const Vec2& p, Real bounda
   return inside;
 }
 
+bool validateTextileName(const std::string& name, std::string* error) {
+  // Quote at most the allowed length: a hostile name may be megabytes long.
+  const std::string shown = name.size() > kMaxTextileNameLength ? name.substr(0, kMaxTextileNameLength) + "..." : name;
+  if (name.empty()) {
+    setError(error, "name is empty (1-" + std::to_string(kMaxTextileNameLength) + " characters required)");
+    return false;
+  }
+  if (name.size() > kMaxTextileNameLength) {
+    setError(error, "name '" + shown + "' has " + std::to_string(name.size()) + " characters, more than the limit of " +
+                        std::to_string(kMaxTextileNameLength));
+    return false;
+  }
+  for (const char c : name) {
+    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
+                    c == '-' || c == '.';
+    if (!ok) {
+      setError(error, "name '" + shown + "' may only contain letters, digits, '_', '-' and '.'");
+      return false;
+    }
+  }
+  if (error != nullptr) error->clear();
+  return true;
+}
+
+bool findEdgeCrossingBruteForce(const std::vector<Vec2>& vertices, std::size_t* first, std::size_t* second) {
+  const std::size_t n = vertices.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t k = i + 2; k < n; ++k) {
+      if (i == 0 && k == n - 1) continue;  // adjacent through the closing edge
+      if (segmentsIntersect(vertices[i], vertices[(i + 1) % n], vertices[k], vertices[(k + 1) % n], kLengthTol)) {
+        *first = i;
+        *second = k;
+        return true;
+      }
+    }
+  }
+  return false;
+}
+
+bool findEdgeCrossing(const std::vector<Vec2>& vertices, std::size_t* first, std::size_t* second) {
+  const std::size_t n = vertices.size();
+  if (n < 4) return false;  // every pair of edges of a triangle is adjacent
+  // Sweep over the edges' bounding boxes (grown by the touching tolerance) in order of their left
+  // ends; only pairs whose boxes overlap are tested. Every candidate is tested (no early exit) so
+  // that the reported pair is the lowest one, as the brute force reports it.
+  struct Box {
+    Real x0, x1, y0, y1;
+  };
+  std::vector<Box> boxes(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2& a = vertices[i];
+    const Vec2& b = vertices[(i + 1) % n];
+    boxes[i] = {std::min(a.x(), b.x()) - kLengthTol, std::max(a.x(), b.x()) + kLengthTol,
+                std::min(a.y(), b.y()) - kLengthTol, std::max(a.y(), b.y()) + kLengthTol};
+  }
+  std::vector<std::size_t> order(n);
+  for (std::size_t i = 0; i < n; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return boxes[a].x0 < boxes[b].x0 || (boxes[a].x0 == boxes[b].x0 && a < b);
+  });
+  const auto adjacent = [n](std::size_t a, std::size_t b) {
+    const std::size_t d = a > b ? a - b : b - a;
+    return d == 1 || d == n - 1;
+  };
+  bool found = false;
+  std::pair<std::size_t, std::size_t> best(n, n);
+  std::vector<std::size_t> active;
+  for (const std::size_t e : order) {
+    const Box& be = boxes[e];
+    std::size_t kept = 0;
+    for (const std::size_t o : active) {
+      const Box& bo = boxes[o];
+      if (bo.x1 < be.x0) continue;  // ends left of every later box: leaves the sweep
+      active[kept++] = o;
+      if (bo.y1 < be.y0 || be.y1 < bo.y0 || adjacent(e, o)) continue;
+      const std::pair<std::size_t, std::size_t> pair(std::min(e, o), std::max(e, o));
+      if (found && !(pair < best)) continue;
+      if (segmentsIntersect(vertices[pair.first], vertices[(pair.first + 1) % n], vertices[pair.second],
+                            vertices[(pair.second + 1) % n], kLengthTol)) {
+        found = true;
+        best = pair;
+      }
+    }
+    active.resize(kept);
+    active.push_back(e);
+  }
+  if (found) {
+    *first = best.first;
+    *second = best.second;
+  }
+  return found;
+}
+
 bool validatePolygon(const std::vector<Vec2>& vertices, std::string* error) {
   const std::size_t n = vertices.size();
+  if (n > kMaxPolygonVertices) {
+    setError(error, "polygon has " + std::to_string(n) + " vertices, more than the limit of " +
+                        std::to_string(kMaxPolygonVertices));
+    return false;
+  }
   if (n < 3) {
     setError(error, "polygon has " + std::to_string(n) + " vertices; at least 3 are required");
     return false;
@@ -269,15 +427,11 @@ bool validatePolygon(const std::vector<Vec2>& vertices, std::string* error) {
     }
   }
 
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t k = i + 2; k < n; ++k) {
-      if (i == 0 && k == n - 1) continue;  // adjacent through the closing edge
-      if (segmentsIntersect(vertices[i], vertices[(i + 1) % n], vertices[k], vertices[(k + 1) % n], kLengthTol)) {
-        setError(error, "polygon edge " + edgeName(i, n) + " crosses edge " + edgeName(k, n) +
-                            " (self-intersection)");
-        return false;
-      }
-    }
+  std::size_t first = 0, second = 0;
+  if (findEdgeCrossing(vertices, &first, &second)) {
+    setError(error, "polygon edge " + edgeName(first, n) + " crosses edge " + edgeName(second, n) +
+                        " (self-intersection)");
+    return false;
   }
 
   const Real area = polygonSignedArea(vertices);
@@ -291,7 +445,8 @@ bool validatePolygon(const std::vector<Vec2>& vertices, std::string* error) {
 }
 
 bool buildFullOutline(const TextileOutline& textile, std::vector<Vec2>* full, std::string* error) {
-  const std::string prefix = "textile '" + textile.name + "': ";
+  const std::string prefix = textilePrefix(textile);
+  if (!checkOutlineSize(textile, error)) return false;
   std::string reason;
   if (!textile.mirrored) {
     if (!validatePolygon(textile.outline, &reason)) {
@@ -364,20 +519,30 @@ std::vector<Vec2> fullOutline(const TextileOutline& textile) {
 }
 
 bool validateTextileOutline(const TextileOutline& textile, std::string* error) {
+  const std::string prefix = textilePrefix(textile);
+  if (!checkOutlineSize(textile, error)) return false;
+  if (textile.named_points.size() > kMaxNamedPoints) {
+    setError(error, prefix + std::to_string(textile.named_points.size()) +
+                        " named points, more than the limit of " + std::to_string(kMaxNamedPoints));
+    return false;
+  }
+  std::string reason;
+  if (!textile.name.empty() && !validateTextileName(textile.name, &reason)) {
+    setError(error, "textile " + reason);
+    return false;
+  }
   std::vector<Vec2> full;
   if (!buildFullOutline(textile, &full, error)) return false;
-  const std::string prefix = "textile '" + textile.name + "': ";
+  std::set<std::string> names;
   for (std::size_t i = 0; i < textile.named_points.size(); ++i) {
     const NamedPoint& p = textile.named_points[i];
-    if (p.name.empty()) {
-      setError(error, prefix + "named point " + std::to_string(i) + " has an empty name");
+    if (!validateTextileName(p.name, &reason)) {
+      setError(error, prefix + "named point " + std::to_string(i) + ": " + reason);
       return false;
     }
-    for (std::size_t k = 0; k < i; ++k) {
-      if (textile.named_points[k].name == p.name) {
-        setError(error, prefix + "named point '" + p.name + "' is defined twice");
-        return false;
-      }
+    if (!names.insert(p.name).second) {
+      setError(error, prefix + "named point '" + p.name + "' is defined twice");
+      return false;
     }
     if (p.kind != "corner" && p.kind != "grasp") {
       setError(error, prefix + "named point '" + p.name + "' has kind '" + p.kind +
@@ -395,7 +560,7 @@ bool validateTextileOutline(const TextileOutline& textile, std::string* error) {
 }
 
 ParticleGrid ParticleGrid::rasterize(const TextileOutline& textile, Real spacing, std::string* error) {
-  const std::string prefix = "cannot rasterise textile '" + textile.name + "': ";
+  const std::string prefix = "cannot rasterise " + textilePrefix(textile);
   if (!std::isfinite(spacing) || spacing <= 0) {
     setError(error, prefix + "particle spacing must be finite and > 0 m, got " + formatReal(spacing));
     return ParticleGrid();
@@ -436,8 +601,9 @@ ParticleGrid ParticleGrid::rasterize(const TextileOutline& textile, Real spacing
   // so that rounding can never break the symmetry.
   const Index first_col = textile.mirrored ? grid.cols_ / 2 : 0;
   for (Index i = 0; i < grid.rows_; ++i) {
+    const RowClassifier row(grid.polygon_, grid.node(i, first_col).y(), tolerance);
     for (Index j = first_col; j < grid.cols_; ++j) {
-      const char inside = pointInPolygon(grid.polygon_, grid.node(i, j), tolerance) ? 1 : 0;
+      const char inside = row.inside(grid.node(i, j)) ? 1 : 0;
       const std::size_t row_start = static_cast<std::size_t>(i) * cols;
       is_active[row_start + static_cast<std::size_t>(j)] = inside;
       if (textile.mirrored) is_active[row_start + static_cast<std::size_t>(grid.cols_ - 1 - j)] = inside;

@@ -1,31 +1,90 @@
 // drape_sim: runs one drape scene from YAML and writes the rest shape, a picture and a resumable state.
 //
-//   drape_sim SCENE.yaml [--out DIR] [--resume STATE] [--until T] [--threads N]
+//   drape_sim SCENE.yaml [--out DIR] [--resume STATE] [--until T] [--threads N] [--memory-budget-mb M]
 //
 // Outputs in DIR (default out/drape_sim): result.yaml (run summary), rest_positions.csv, rest_shape.png,
 // state.txt (save file; `--resume DIR/state.txt` continues the run), trajectory.csv when the scene sets
 // simulation.trajectory_every. The scene's collision/obstacles sections turn on the post-step passes;
 // result.yaml reports their cost per step and the intersecting triangle pairs of the final shape.
-// Exit status: 0 rest reached or time cap, 2 bad input, 3 divergence.
+// Exit status (docs/simulation.md): 0 rest reached or time cap, 2 bad input or usage, 3 divergence,
+// 4 outputs cannot be written, 5 out of memory or another unexpected error.
 #include <omp.h>
 
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <filesystem>
-#include <fstream>
 #include <iostream>
+#include <limits>
+#include <new>
 #include <string>
 
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/rest_shape_picture.h"
+#include "textile_handling/sim/thread_limit.h"
 
 using namespace textile_handling;
 
 namespace {
 
-int usage(const char* argv0) {
-  std::cerr << "usage: " << argv0 << " SCENE.yaml [--out DIR] [--resume STATE] [--until T] [--threads N]\n";
-  return 2;
+constexpr int kExitBadInput = 2;
+constexpr int kExitDiverged = 3;
+constexpr int kExitOutput = 4;
+constexpr int kExitInternal = 5;
+
+int usage(const char* argv0, const std::string& problem = "") {
+  if (!problem.empty()) std::cerr << "drape_sim: " << problem << "\n";
+  std::cerr << "usage: " << argv0
+            << " SCENE.yaml [--out DIR] [--resume STATE] [--until T] [--threads N] [--memory-budget-mb M]\n";
+  return kExitBadInput;
+}
+
+struct Options {
+  std::string scene_path, out_dir = "out/drape_sim", resume;
+  Real until = std::numeric_limits<Real>::infinity();
+  int threads = 0;                      // 0 = the OpenMP default (capped too)
+  std::size_t memory_budget_bytes = 0;  // 0 = half of physical memory
+};
+
+// A whole positive number with nothing after it; false otherwise.
+bool parsePositive(const std::string& text, double* value) {
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || errno == ERANGE || !(v > 0) || !std::isfinite(v)) return false;
+  *value = v;
+  return true;
+}
+
+// Parses the command line into `o`; returns an error message, or "" if the arguments are valid.
+std::string parseArguments(int argc, char** argv, Options& o) {
+  if (argc < 2) return "no scene file given";
+  o.scene_path = argv[1];
+  for (int i = 2; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) return "option " + a + " needs a value";
+    const std::string value = argv[++i];
+    double number = 0;
+    std::string error;
+    if (a == "--out") {
+      o.out_dir = value;
+    } else if (a == "--resume") {
+      o.resume = value;
+    } else if (a == "--until") {
+      if (!parsePositive(value, &number)) return "--until must be a positive number of seconds, got '" + value + "'";
+      o.until = number;
+    } else if (a == "--threads") {
+      if (!parseThreadCount(value, &o.threads, &error)) return error;
+    } else if (a == "--memory-budget-mb") {
+      if (!parsePositive(value, &number) || number > 1e12)
+        return "--memory-budget-mb must be a positive number of MiB, got '" + value + "'";
+      o.memory_budget_bytes = static_cast<std::size_t>(number * 1024 * 1024);
+    } else {
+      return "unknown option " + a;
+    }
+  }
+  return "";
 }
 
 void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r, Real depth, long pairs) {
@@ -73,42 +132,64 @@ void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r,
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  if (argc < 2) return usage(argv[0]);
-  std::string scene_path = argv[1], out_dir = "out/drape_sim", resume;
-  Real until = std::numeric_limits<Real>::infinity();
-  for (int i = 2; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (i + 1 >= argc) return usage(argv[0]);
-    if (a == "--out") out_dir = argv[++i];
-    else if (a == "--resume") resume = argv[++i];
-    else if (a == "--until") until = std::atof(argv[++i]);
-    else if (a == "--threads") omp_set_num_threads(std::atoi(argv[++i]));
-    else return usage(argv[0]);
+// The rest shape's files; throws OutputError on any failed write.
+void writeOutputs(const std::string& out_dir, const DrapeScene& scene, const DrapeSimulation& sim, const RunResult& r,
+                  Real depth, long pairs) {
+  writeFileAtomically(out_dir + "/result.yaml", [&](std::ostream& f) { writeSummary(f, scene, r, depth, pairs); });
+  writeFileAtomically(out_dir + "/rest_positions.csv", [&](std::ostream& f) {
+    f << "particle,row,col,x_m,y_m,z_m\n";
+    f.precision(9);
+    const auto& x = sim.positions();
+    for (Index k = 0; k < scene.model->numNodes(); ++k)
+      f << k << ',' << scene.grid.compactRows()[k] << ',' << scene.grid.compactCols()[k] << ',' << x[3 * k] << ','
+        << x[3 * k + 1] << ',' << x[3 * k + 2] << '\n';
+  });
+  if (!sim.trajectory().empty()) {
+    writeFileAtomically(out_dir + "/trajectory.csv", [&](std::ostream& f) {
+      f << "t_s,particle,x_m,y_m,z_m\n";
+      for (const auto& fr : sim.trajectory())
+        for (Index k = 0; k < scene.model->numNodes(); ++k)
+          f << fr.t << ',' << k << ',' << fr.x[3 * k] << ',' << fr.x[3 * k + 1] << ',' << fr.x[3 * k + 2] << '\n';
+    });
   }
+  sim.save(out_dir + "/state.txt");
+  if (!r.diverged) {
+    std::string err;
+    if (!writeRestShapePicture(out_dir + "/rest_shape.png", ParticleTopology::fromGrid(scene.grid), sim.positions(),
+                               {scene.hold_particle}, 400, &err))
+      throw OutputError(err);
+  }
+}
+
+int run(const Options& o) {
+  std::string note;
+  applyThreadLimit(o.threads, &note);
+  if (!note.empty()) std::cout << "drape_sim: note: " << note << "\n";
   DrapeScene scene;
   try {
-    scene = buildDrapeScene(loadDrapeSceneYaml(scene_path));
-  } catch (const std::exception& e) {
-    std::cerr << "drape_sim: " << e.what() << "\n";
-    return 2;
+    DrapeSceneSpec spec = loadDrapeSceneYaml(o.scene_path);
+    spec.settings.memory_budget_bytes = o.memory_budget_bytes;
+    scene = buildDrapeScene(spec);
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "drape_sim: " << o.scene_path << ": " << e.what() << "\n";
+    return kExitBadInput;
   }
-  std::error_code ec;
-  std::filesystem::create_directories(out_dir, ec);
-  if (ec) {
-    std::cerr << "drape_sim: cannot create " << out_dir << ": " << ec.message() << "\n";
-    return 2;
+  // The output directory must be usable before the (possibly long) simulation starts.
+  try {
+    createDirectories(o.out_dir, 0755);
+    checkWritableDirectory(o.out_dir);
+  } catch (const OutputError& e) {
+    std::cerr << "drape_sim: " << e.what() << "\n";
+    return kExitOutput;
   }
   DrapeSimulation sim(*scene.model, scene.pins, scene.spec.settings, scene.x0, scene.v0);
   sim.setPostStepPass(scene.postStepPass());
-  if (!resume.empty()) {
+  if (!o.resume.empty()) {
     try {
-      sim.load(resume);
+      sim.load(o.resume);
     } catch (const std::exception& e) {
       std::cerr << "drape_sim: " << e.what() << "\n";
-      return 2;
+      return kExitBadInput;
     }
     std::cout << "resumed at t = " << sim.time() << " s\n";
   }
@@ -117,46 +198,38 @@ int main(int argc, char** argv) {
             << (scene.spec.hold.empty() ? std::string("region") : scene.spec.hold.front().label()) << " with "
             << toString(scene.spec.settings.integrator) << " / " << toString(scene.spec.settings.policy) << " steps, "
             << omp_get_max_threads() << " threads\n";
-  const RunResult r = sim.run(until);
+  const RunResult r = sim.run(o.until);
   const Real depth = hangingDepth(scene, sim.positions());
   // Independent check of the rest shape: exact triangle-triangle tests over the whole mesh.
   const long pairs = countIntersectingTrianglePairs(scene.triangles(), sim.positions());
   writeSummary(std::cout, scene, r, depth, pairs);
-  {
-    std::ofstream f(out_dir + "/result.yaml");
-    writeSummary(f, scene, r, depth, pairs);
-  }
-  {
-    std::ofstream f(out_dir + "/rest_positions.csv");
-    f << "particle,row,col,x_m,y_m,z_m\n";
-    f.precision(9);
-    const auto& x = sim.positions();
-    for (Index k = 0; k < scene.model->numNodes(); ++k)
-      f << k << ',' << scene.grid.compactRows()[k] << ',' << scene.grid.compactCols()[k] << ',' << x[3 * k] << ','
-        << x[3 * k + 1] << ',' << x[3 * k + 2] << '\n';
-  }
-  if (!sim.trajectory().empty()) {
-    std::ofstream f(out_dir + "/trajectory.csv");
-    f << "t_s,particle,x_m,y_m,z_m\n";
-    for (const auto& fr : sim.trajectory())
-      for (Index k = 0; k < scene.model->numNodes(); ++k)
-        f << fr.t << ',' << k << ',' << fr.x[3 * k] << ',' << fr.x[3 * k + 1] << ',' << fr.x[3 * k + 2] << '\n';
-  }
   try {
-    sim.save(out_dir + "/state.txt");
-  } catch (const std::exception& e) {
-    std::cerr << "drape_sim: " << e.what() << "\n";
+    writeOutputs(o.out_dir, scene, sim, r, depth, pairs);
+  } catch (const OutputError& e) {
+    std::cerr << "drape_sim: cannot write outputs: " << e.what() << "\n";
+    return kExitOutput;
   }
-  if (!r.diverged) {
-    std::string err;
-    if (!writeRestShapePicture(out_dir + "/rest_shape.png", ParticleTopology::fromGrid(scene.grid), sim.positions(),
-                               {scene.hold_particle}, 400, &err))
-      std::cerr << "drape_sim: " << err << "\n";
-  }
-  std::cout << "outputs in " << out_dir << "/ (result.yaml, rest_positions.csv, rest_shape.png, state.txt)\n";
+  std::cout << "outputs in " << o.out_dir << "/ (result.yaml, rest_positions.csv, rest_shape.png, state.txt)\n";
   if (r.diverged) {
     std::cerr << "drape_sim: simulation diverged at t = " << r.divergence_time << " s: " << r.divergence_reason << "\n";
-    return 3;
+    return kExitDiverged;
   }
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  const std::string problem = parseArguments(argc, argv, options);
+  if (!problem.empty()) return usage(argv[0], problem);
+  // Nothing escapes main: an allocation failure or an unexpected error is reported with its own code.
+  try {
+    return run(options);
+  } catch (const std::bad_alloc&) {
+    std::cerr << "drape_sim: out of memory (use a coarser spacing_m or a smaller --memory-budget-mb)\n";
+  } catch (const std::exception& e) {
+    std::cerr << "drape_sim: unexpected error: " << e.what() << "\n";
+  }
+  return kExitInternal;
 }

@@ -762,31 +762,8 @@ TEST(DrapeSceneYaml, RepositorySceneParsesAndBuilds) {
 }
 
 TEST(DrapeSceneYaml, FullSceneWithAllSections) {
-  const std::string text = R"(
-textile:
-  name: napkin
-  outline: [[0, 0], [0.2, 0], [0.2, 0.2], [0, 0.2]]
-  named_points: {tip: [0.2, 0.2], mid: {position: [0.1, 0.1], kind: grasp}}
-material: cotton
-spacing_m: 0.05
-hold:
-  points: [tip, [0.0, 0.2]]
-  position: [0.5, 0.0, 1.2]
-  lift: [[0, 0, 0, 0], [1.0, 0, 0, 0.2]]
-pinned_regions: [[0.0, 0.0, 0.05, 0.05]]
-model: {name: particle_kes, jacobian: definite_fix, drag: false, settle_damping_per_s: 2.5}
-simulation: {integrator: block_diagonal, policy: thesis, dt_s: 0.0005, max_time_s: 3, trajectory_every: 10,
-             linear_solver: direct, preconditioner: block_jacobi, cg_warm_start: true, cg_smoothing_steps: 2,
-             cg_smoothing_weight: 0.5, cg_accept_tolerance: 0.1, cg_tolerance: 0.01, max_wall_time_s: 60}
-collision: {self: v2, response: relative, restitution: 0.5, tangential_damping: 0.25, max_passes: 7,
-            d_min_m: 0.002, include_diagonals: false}
-obstacles:
-  contact_distance_m: 0.002
-  friction: 0.3
-  planes: [{point: [0, 0, 0], normal: [0, 0, 2]}]
-  boxes: [{min: [-0.25, -0.25, 0], max: [0.25, 0.25, 0.75]}, {centre: [1, 0, 1], half_extents: [0.01, 0.02, 0.03], yaw_rad: 0.5}]
-  spheres: [{centre: [0, 0, 2], radius_m: 0.05}]
-)";
+  // Every section (the fixture is shared with the parser fuzz of test_scene_validation.cpp).
+  const std::string text = readFile(kSourceDir + "/test/sim/scene_all_sections.yaml");
   const DrapeSceneSpec s = parseDrapeSceneYaml(text);
   EXPECT_EQ(s.textile.name, "napkin");
   EXPECT_EQ(s.textile.named_points.size(), 2u);
@@ -839,10 +816,24 @@ obstacles:
   EXPECT_TRUE(scene.x0.segment<3>(3 * scene.hold_particle).isApprox(Vec3(0.5, 0.0, 1.2)));
 }
 
+// `text` plus the required top-level keys it does not set itself (towel, cotton, d = 5 cm, held at a
+// corner), so that each malformed-field case below fails for its own field.
+std::string withRequiredKeys(const std::string& text) {
+  if (!text.empty() && text[0] == '-') return text;  // a top-level list stays one
+  std::string out;
+  for (const char* line : {"textile: towel", "material: cotton", "spacing_m: 0.05", "hold: {points: [corner_ul]}"}) {
+    const std::string key = std::string(line).substr(0, std::string(line).find(':') + 1);
+    if (text.rfind(key, 0) != 0 && text.find("\n" + key) == std::string::npos) out += std::string(line) + "\n";
+  }
+  return out + text;
+}
+
 TEST(DrapeSceneYaml, ChoiKoModelIsSelectablePerScene) {
   const DrapeSceneSpec s = parseDrapeSceneYaml(R"(
 textile: square
+material: cotton
 spacing_m: 0.05
+hold: {points: [corner_ul]}
 model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, tensile_stiffness_N_m: 400,
         settle_damping_per_s: 0}
 )");
@@ -853,7 +844,7 @@ model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, 
   const DrapeScene scene = buildDrapeScene(s);
   EXPECT_EQ(scene.model->name(), "choi_ko");
   EXPECT_EQ(scene.model->numNodes(), 7 * 7);
-  EXPECT_THROW(parseDrapeSceneYaml("model: {bending_version: shell}"), std::invalid_argument);
+  EXPECT_THROW(parseDrapeSceneYaml(withRequiredKeys("model: {bending_version: shell}")), std::invalid_argument);
   DrapeSceneSpec bad = s;
   bad.model = "yarn_level";
   EXPECT_THROW(buildDrapeScene(bad), std::invalid_argument);
@@ -874,7 +865,7 @@ void expectRejected(const std::function<void()>& f, const std::vector<std::strin
 }
 
 TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
-  auto parse = [](const std::string& text) { return [text] { parseDrapeSceneYaml(text); }; };
+  auto parse = [](const std::string& text) { return [text] { parseDrapeSceneYaml(withRequiredKeys(text)); }; };
   expectRejected(parse("simulation: {integrator: euler}"), {"integrator", "euler"}, "unknown integrator");
   expectRejected(parse("simulation: {integrator: [rk4]}"), {"simulation.integrator"}, "integrator not a string");
   expectRejected(parse("simulation: {policy: sometimes}"), {"policy", "sometimes"}, "unknown policy");
@@ -891,9 +882,9 @@ TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
   expectRejected(parse("simulation: {trajectory_every: -2}"), {"simulation.trajectory_every"}, "negative stride");
   expectRejected(parse("model: {name: [particle_kes]}"), {"model.name"}, "model name not a string");
   expectRejected(parse("material: {name: cotton}"), {"material"}, "material not a string");
-  expectRejected(parse("hold: {position: [0, .nan, 1]}"), {"hold.position"}, "NaN hold position");
-  expectRejected(parse("hold: {position: [0, 1]}"), {"hold.position"}, "short hold position");
-  expectRejected(parse("hold: {lift: [[0, 0, 0]]}"), {"hold.lift"}, "short lift waypoint");
+  expectRejected(parse("hold: {points: [corner_ul], position: [0, .nan, 1]}"), {"hold.position"}, "NaN hold position");
+  expectRejected(parse("hold: {points: [corner_ul], position: [0, 1]}"), {"hold.position"}, "short hold position");
+  expectRejected(parse("hold: {points: [corner_ul], lift: [[0, 0, 0]]}"), {"hold.lift"}, "short lift waypoint");
   expectRejected(parse("model: {gravity: maybe}"), {"model.gravity"}, "bad bool");
   expectRejected(parse("model: {jacobian: approximate}"), {"model.jacobian"}, "bad jacobian");
   expectRejected(parse("model: {settle_damping_per_s: -1}"), {"model.settle_damping_per_s"}, "negative damping");
@@ -930,7 +921,9 @@ TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
   expectRejected(parse("- just\n- a list"), {"map"}, "top level not a map");
 
   // Semantic errors found when building.
-  auto build = [](const std::string& text) { return [text] { buildDrapeScene(parseDrapeSceneYaml(text)); }; };
+  auto build = [](const std::string& text) {
+    return [text] { buildDrapeScene(parseDrapeSceneYaml(withRequiredKeys(text))); };
+  };
   expectRejected(build("hold: {points: [nowhere]}"), {"nowhere", "corner_ul"}, "unknown named hold point");
   expectRejected(build("model: {name: mass_spring}"), {"mass_spring"}, "unknown model");
   expectRejected(build("hold: {points: [corner_ul], lift: [[1, 0, 0, 0], [0.5, 0, 0, 1]]}"), {"lift"},

@@ -45,6 +45,10 @@ struct SimulationSettings {
   /// Wall-time cap of one run() call [s] (0 = none): run() returns with wall_cap_reached, neither at
   /// rest nor diverged; a later run() continues. For benchmarks and services that must answer.
   Real max_wall_time = 0;
+  /// Memory budget of this simulation [bytes], a property of the machine and never read from scene
+  /// files; 0 = half of physical memory. buildDrapeScene() refuses scenes whose estimate exceeds it
+  /// (memory_budget.h).
+  std::size_t memory_budget_bytes = 0;
 };
 
 struct RunResult {
@@ -103,7 +107,8 @@ class DrapeSimulation {
 
   /// Writes the full dynamic state (time, dt, step-controller memory, rest timer, counters, x, v,
   /// pins, model internal state) to a text file; values are written exactly (hex floats).
-  /// Throws std::runtime_error on I/O errors.
+  /// The file is written to PATH.tmp, checked after flush and close, then renamed (writeFileAtomically,
+  /// output_files.h). Throws OutputError (a std::runtime_error) naming the path on I/O errors.
   void save(const std::string& path) const;
   /// Restores a state written by save() for the same model size; throws std::runtime_error with a
   /// clear message on a malformed or mismatching file (and leaves this object unchanged).

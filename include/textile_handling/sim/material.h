@@ -15,6 +15,7 @@
 // See docs/materials.md for the YAML file format.
 #pragma once
 
+#include <cstddef>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -196,7 +197,13 @@ constexpr Real kGfCmPerCmToN = kGramForce;
 // Curvature: 1/m -> 1/cm.
 constexpr Real kPerMeterToPerCm = 0.01;
 
-// Reads and parses a material YAML file (format: docs/materials.md).
+// Longest list in a material YAML document (curve breakpoints, pieces, coefficients of a piece, table
+// points): far above any measured KES curve, and it bounds the work of parsing and evaluating curves.
+constexpr std::size_t kMaxMaterialListLength = 1024;
+
+// Reads and parses a material YAML file (format: docs/materials.md). Files larger than
+// kMaxYamlDocumentBytes (1 MiB, text_input.h) and files that are not regular files are refused
+// before they are read.
 // Throws MaterialError (message contains the path and the field) on I/O errors,
 // malformed YAML, missing/unknown fields, wrong types, non-finite or out-of-range
 // values, or invalid curves.

@@ -6,6 +6,7 @@
 // This module is ROS-free and OpenCV-free; it only needs Eigen (via types.h).
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -30,16 +31,43 @@ Real pointSegmentDistance(const Vec2& p, const Vec2& a, const Vec2& b);
 /// its boundary. Uses the even-odd rule, so the polygon should be simple.
 bool pointInPolygon(const std::vector<Vec2>& polygon, const Vec2& p, Real boundary_tolerance);
 
+/// Size limits of textile outlines (docs/simulation.md, "Limits"). They bound the work of validation
+/// and rasterisation and are checked before anything else (before any allocation or O(n log n) work).
+/// A textile outline as given (the half outline of a mirrored textile) has at most this many vertices.
+constexpr std::size_t kMaxOutlineVertices = 4096;
+/// A polygon given to validatePolygon(): the full outline of a mirrored maximal textile (2n - 2).
+constexpr std::size_t kMaxPolygonVertices = 2 * kMaxOutlineVertices - 2;
+/// Named points per textile.
+constexpr std::size_t kMaxNamedPoints = 256;
+/// Longest textile or named-point name (characters).
+constexpr std::size_t kMaxTextileNameLength = 64;
+
+/// The name rule of textiles and named points: 1..64 characters, each a letter, a digit, '_', '-' or
+/// '.' (safe as a file name, in SQL text, in YAML and in ROS messages). Returns true if `name`
+/// follows it; otherwise false and, if `error` is non-null, a reason quoting (the start of) the name.
+/// `error` is cleared on success.
+bool validateTextileName(const std::string& name, std::string* error);
+
 /// Checks that `vertices` [m] describe a usable simple polygon. Rejects, in this
-/// order: fewer than 3 vertices, non-finite coordinates, coincident consecutive
-/// vertices (also last/first), all vertices collinear, adjacent edges that
-/// double back onto each other, two non-adjacent edges that cross or touch
-/// (collinear overlaps included; O(n^2)), and |area| < 1e-12 m^2.
+/// order: more than kMaxPolygonVertices vertices, fewer than 3 vertices,
+/// non-finite coordinates, coincident consecutive vertices (also last/first),
+/// all vertices collinear, adjacent edges that double back onto each other, two
+/// non-adjacent edges that cross or touch (collinear overlaps included; a sweep
+/// over the edges' bounding boxes, O(n log n) for outlines whose edges are
+/// short against the outline, O(n^2) at worst), and |area| < 1e-12 m^2.
 /// Returns true if valid; otherwise false and, if `error` is non-null, a
 /// human-readable reason such as "polygon edge 1-2 crosses edge 3-4" (edges are
 /// named by their vertex indices). `error` is cleared on success.
 /// For a Polygon2 p, call validatePolygon(p.vertices, error).
 bool validatePolygon(const std::vector<Vec2>& vertices, std::string* error);
+
+/// The first pair (lowest i, then lowest k > i) of non-adjacent edges of the closed loop `vertices`
+/// that cross or come within 1e-12 m of each other; edge i runs from vertex i to vertex (i+1) mod n.
+/// Returns false if there is none. Vertices must be finite. Sweep over the edges' bounding boxes
+/// sorted by x (what validatePolygon() uses).
+bool findEdgeCrossing(const std::vector<Vec2>& vertices, std::size_t* first, std::size_t* second);
+/// The same answer by testing every pair, O(n^2): the reference for tests of findEdgeCrossing().
+bool findEdgeCrossingBruteForce(const std::vector<Vec2>& vertices, std::size_t* first, std::size_t* second);
 
 /// A labelled point on a textile, e.g. a corner or a grasp point.
 struct NamedPoint {
@@ -67,6 +95,7 @@ struct TextileOutline {
 
 /// Non-throwing form of fullOutline(): writes the full polygon [m] to `*full`
 /// and returns true, or returns false with a reason in `*error` (if non-null).
+/// An outline with more than kMaxOutlineVertices vertices is refused first.
 /// For mirrored outlines the result is half[0..n-1] followed by the reflections
 /// of half[n-2] .. half[1], so it has 2n-2 vertices and the same orientation
 /// as the half outline. The result is validated with validatePolygon().
@@ -76,9 +105,12 @@ bool buildFullOutline(const TextileOutline& textile, std::vector<Vec2>* full, st
 /// Throws std::invalid_argument with a clear message if the outline is invalid.
 std::vector<Vec2> fullOutline(const TextileOutline& textile);
 
-/// Validates the outline (as buildFullOutline()) and additionally checks that
-/// named point names are non-empty and unique, that kinds are "corner" or
-/// "grasp", and that every named point lies inside or on the full outline
+/// Validates the outline (as buildFullOutline()) and additionally checks, in
+/// this order: at most kMaxOutlineVertices outline vertices and kMaxNamedPoints
+/// named points (first, before any other work), the textile name by
+/// validateTextileName() unless it is empty, the outline, then for each named
+/// point its name (validateTextileName()), that no name repeats, that its kind
+/// is "corner" or "grasp", and that it lies inside or on the full outline
 /// (tolerance 1e-9 m). Returns false with a reason in `*error` otherwise.
 bool validateTextileOutline(const TextileOutline& textile, std::string* error);
 
@@ -104,6 +136,9 @@ class ParticleGrid {
   /// cols is odd, the axis midway between two columns when even), and the
   /// activity of the x >= mirror_x half is copied to the other half, so the
   /// active set is exactly mirror-symmetric: active(i, j) == active(i, cols-1-j).
+  ///
+  /// Each row is tested against only the outline edges that cross or touch it (same arithmetic as
+  /// pointInPolygon(), so the same answers), O(rows * n + nodes * k) for an n-gon.
   ///
   /// On failure returns an empty grid and, if `error` is non-null, sets a reason:
   /// spacing not finite or <= 0, invalid outline, grid too large (> 1e8 nodes),
