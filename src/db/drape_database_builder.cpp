@@ -17,6 +17,7 @@
 #include <tuple>
 #include <utility>
 
+#include "textile_handling/sim/memory_budget.h"
 #include "textile_handling/sim/particle_cloth_model.h"
 
 namespace textile_handling {
@@ -255,6 +256,25 @@ std::string formatProgressBar(int done, int total, double elapsed_s, int failed,
   return bar + buf;
 }
 
+namespace {
+
+// A build runs up to `workers` simulations at once: together they must fit in the memory budget
+// (buildDrapeScene has checked one). Throws MemoryBudgetError (an std::invalid_argument).
+void checkBuildMemory(const DrapeBuildConfig& c, Index nodes, int simulations) {
+  const int hw = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int at_once = std::max(1, std::min(c.workers > 0 ? c.workers : hw, simulations));
+  SimulationMemoryInput in;
+  in.nodes = nodes;
+  in.integrator = c.settings.integrator;
+  in.solver = c.settings.solver.kind;
+  in.self_collision = c.self_collision;
+  checkMemoryBudget(estimateSimulationBytes(in), c.settings.memory_budget_bytes,
+                    "the database build of '" + c.textile.name + "' (" + std::to_string(nodes) + " particles per simulation)",
+                    static_cast<std::size_t>(at_once));
+}
+
+}  // namespace
+
 DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildConfig config)
     : db_(db), config_(std::move(config)) {
   const DrapeBuildConfig& c = config_;
@@ -298,6 +318,7 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
   // The scene of the first hold point checks the remaining settings (model, solver, time steps).
   try {
     DrapeScene scene = buildDrapeScene(sceneSpec(c, plan_.front().position));
+    checkBuildMemory(c, scene.model->numNodes(), static_cast<int>(canonical.size()));
     DrapeSimulation probe(*scene.model, scene.pins, scene.spec.settings, scene.x0, scene.v0);
     symmetric_grid_ = symmetry_.any();
     for (MirrorKind m : symmetry_.mirrors())

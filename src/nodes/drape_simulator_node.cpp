@@ -88,6 +88,13 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
       throw std::runtime_error("parameter ~hold_position_m must be a list of three finite numbers");
     hold_position_ = Vec3(hold[0], hold[1], hold[2]);
   }
+  // Memory budget of one simulate_drape scene and of a database build's simultaneous simulations
+  // (0 = half of physical memory; docs/simulation.md, "Memory budget").
+  double budget_mb = 0;
+  pnh.param("memory_budget_mb", budget_mb, budget_mb);
+  if (!std::isfinite(budget_mb) || budget_mb < 0 || budget_mb > 1e12)
+    throw std::runtime_error("parameter ~memory_budget_mb must be a finite number of MiB >= 0 (0 = half of physical memory)");
+  settings_.memory_budget_bytes = static_cast<std::size_t>(budget_mb * 1024 * 1024);
   pnh.param<std::string>("hold_frame", hold_frame_, hold_frame_);
   if (hold_frame_.empty()) throw std::runtime_error("parameter ~hold_frame must not be empty");
 
@@ -106,6 +113,7 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   ro.build.workers = positiveIntParam(pnh, "worker_threads", 2);
   ro.build.threads_per_simulation = 1;
   ro.build.hold_height = hold_position_.z();
+  ro.build.settings.memory_budget_bytes = settings_.memory_budget_bytes;
   pnh.param("database_self_collision", ro.build.self_collision, false);
   ro.max_hold_points = positiveIntParam(pnh, "max_hold_points", ro.max_hold_points);
   pnh.param("max_failed_fraction", ro.max_failed_fraction, ro.max_failed_fraction);

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "textile_handling/db/database_errors.h"
+#include "textile_handling/sim/output_files.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
 namespace textile_handling {
@@ -15,14 +16,10 @@ namespace {
 
 using db::InvalidInputError;
 
+// Textile, named-point and material names share one rule (validateTextileName).
 void checkName(const std::string& name, const char* what) {
-  if (name.empty()) throw InvalidInputError(std::string(what) + " is empty");
-  if (name.size() > 64) throw InvalidInputError(std::string(what) + " is longer than 64 characters");
-  for (char c : name) {
-    const bool ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' ||
-                    c == '-' || c == '.';
-    if (!ok) throw InvalidInputError(std::string(what) + " '" + name + "' may only contain letters, digits, _ - .");
-  }
+  std::string why;
+  if (!validateTextileName(name, &why)) throw InvalidInputError(std::string(what) + ": " + why);
 }
 
 void checkSpacing(Real v, const char* what) {
@@ -41,7 +38,9 @@ TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions opti
   if (!(options_.build.lattice_spacing > 0) || !(options_.build.spacing > 0) || options_.max_hold_points < 1)
     throw std::invalid_argument("TextileRegistry: lattice spacing, particle spacing and max_hold_points must be positive");
   const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
-  if (!parent.empty()) std::filesystem::create_directories(parent);
+  // 0755 whatever the process umask (a node started under umask 000 must not make world-writable
+  // directories).
+  if (!parent.empty()) createDirectories(parent.string(), 0755);
   db_ = std::make_unique<db::HangingDrapeDatabase>(path_);
   options_.build.progress = false;  // progress goes to the callback, not to a terminal
   worker_ = std::thread([this] { workerLoop(); });

@@ -4,10 +4,12 @@
 // requests store nothing, and the database stays consistent.
 #include <gtest/gtest.h>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <limits>
 #include <random>
 #include <string>
@@ -89,6 +91,31 @@ TEST(RegistryHostileInput, OversizedAndMalformedRequestsAreRefusedAtOnce) {
   EXPECT_EQ(reg.list().size(), 1u);
 }
 
+TEST(RegistryHostileInput, DatabaseDirectoriesGetMode0755UnderUmask000) {
+  const std::string root = std::filesystem::path(tempDb("mode")).parent_path().string();
+  const std::string path = root + "/a/b/drapes.sqlite";
+  const mode_t saved = ::umask(0);
+  { TextileRegistry reg(path, smallOptions()); }
+  ::umask(saved);
+  for (const std::string& dir : {root + "/a", root + "/a/b"}) {
+    struct stat st {};
+    ASSERT_EQ(::stat(dir.c_str(), &st), 0) << dir;
+    EXPECT_EQ(st.st_mode & 07777, 0755u) << dir;
+  }
+  struct stat st {};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 022, 0u) << "the database file is group- or world-writable";
+  // A directory that cannot be created is a clear error naming it.
+  const std::string blocked = root + "/file";
+  { std::ofstream(blocked) << "x"; }
+  try {
+    TextileRegistry reg(blocked + "/sub/drapes.sqlite", smallOptions());
+    ADD_FAILURE() << "opened a database below a file";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find(blocked), std::string::npos) << e.what();
+  }
+}
+
 TEST(RegistryHostileInput, RandomRequestsAreStoredOrRefusedCleanly) {
   TextileRegistry reg(tempDb("fuzz"), smallOptions());
   std::mt19937 rng(15);
@@ -102,20 +129,22 @@ TEST(RegistryHostileInput, RandomRequestsAreStoredOrRefusedCleanly) {
   const std::vector<std::string> models{"", "particle_kes", "choi_ko", "yarn", "\n"};
   int accepted = 0;
   for (int it = 0; it < 300; ++it) {
-    TextileRegistration r;
-    r.name = pick(names) + (std::uniform_int_distribution<int>(0, 1)(rng) ? std::to_string(it) : "");
-    const int n = std::uniform_int_distribution<int>(0, 8)(rng);
-    if (n >= 3 && std::uniform_int_distribution<int>(0, 2)(rng) == 0) {
-      r.outline = square("").outline;  // mostly valid outlines with other faults
-    } else {
-      for (int k = 0; k < n; ++k) r.outline.emplace_back(pick(coords), pick(coords));
+    // A valid request with 0-2 random faults (so that both answers occur).
+    TextileRegistration r = square("cloth" + std::to_string(it));
+    r.named_points = {{"tip", "corner", Vec2(0.3, 0.3)}};
+    r.hold_point_spacing = 0.15;
+    const int faults = std::uniform_int_distribution<int>(0, 2)(rng);
+    for (int f = 0; f < faults; ++f) {
+      switch (std::uniform_int_distribution<int>(0, 6)(rng)) {
+        case 0: r.name = pick(names); break;
+        case 1: r.outline[std::uniform_int_distribution<std::size_t>(0, 3)(rng)] = Vec2(pick(coords), pick(coords)); break;
+        case 2: r.outline.resize(std::uniform_int_distribution<std::size_t>(0, 5)(rng), Vec2(pick(coords), pick(coords))); break;
+        case 3: r.named_points.push_back({pick(names), pick(names), Vec2(pick(coords), pick(coords))}); break;
+        case 4: r.material_yaml = pick(yamls); break;
+        case 5: r.hold_point_spacing = pick(coords); break;
+        default: r.model = pick(models); break;
+      }
     }
-    const int points = std::uniform_int_distribution<int>(0, 3)(rng);
-    for (int k = 0; k < points; ++k)
-      r.named_points.push_back({pick(names), k % 2 ? "corner" : pick(names), Vec2(pick(coords), pick(coords))});
-    r.material_yaml = pick(yamls);
-    r.hold_point_spacing = pick(coords);
-    r.model = pick(models);
     try {
       reg.registerTextile(r);
       ++accepted;
@@ -149,6 +178,5 @@ TEST(RegistryHostileInput, RandomRequestsAreStoredOrRefusedCleanly) {
   std::printf("fuzzed 300 registrations: %d accepted\n", accepted);
 }
 
-}  // namespace
 }  // namespace registry
 }  // namespace textile_handling

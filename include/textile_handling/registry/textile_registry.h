@@ -91,8 +91,9 @@ class TextileRegistry {
   using ProgressCallback = std::function<void(const BuildProgressEvent&)>;
   using ChangedCallback = std::function<void(std::int64_t textile_id)>;
 
-  /// Opens (creates) the database at `database_path` and starts the worker. Throws
-  /// db::DrapeDatabaseError if the file cannot be opened, std::invalid_argument for bad options.
+  /// Opens (creates) the database at `database_path` (missing directories get mode 0755 whatever the
+  /// umask) and starts the worker. Throws db::DrapeDatabaseError if the file cannot be opened,
+  /// OutputError if its directory cannot be created, std::invalid_argument for bad options.
   TextileRegistry(std::string database_path, RegistryOptions options, ProgressCallback on_progress = {},
                   ChangedCallback on_changed = {});
   /// Stops the worker: the build in progress stops after its running simulations (resumable).
