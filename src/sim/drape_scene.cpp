@@ -198,9 +198,12 @@ constexpr std::size_t kMaxSceneListLength = 256;
 
 [[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("scene: " + message); }
 
-// Keys and names from the file are quoted at most this long in messages.
+// Keys and names from the file are quoted at most this long in messages (a key path holds a few
+// names of at most kMaxTextileNameLength characters).
+constexpr std::size_t kMaxQuotedLength = 200;
+
 std::string quoted(const std::string& text) {
-  return "'" + (text.size() > kMaxTextileNameLength ? text.substr(0, kMaxTextileNameLength) + "..." : text) + "'";
+  return "'" + (text.size() > kMaxQuotedLength ? text.substr(0, kMaxQuotedLength) + "..." : text) + "'";
 }
 
 std::string joined(const std::string& path, const std::string& key) { return path.empty() ? key : path + "." + key; }
