@@ -95,8 +95,8 @@ void checkMemoryBudget(std::size_t estimate_bytes, std::size_t budget_bytes, con
                           (budget_bytes == 0 ? " (default: half of the " + formatBytes(physicalMemoryBytes()) +
                                                    " of physical memory)"
                                              : "") +
-                          "; use a coarser particle spacing, or raise the budget (memory_budget_bytes of the "
-                          "simulation settings, drape_sim --memory-budget-mb)");
+                          "; use a coarser particle spacing or fewer workers, or raise the budget (drape_sim / drape_db "
+                          "--memory-budget-mb, the drape_simulator parameter ~memory_budget_mb)");
 }
 
 }  // namespace textile_handling
