@@ -32,6 +32,8 @@
 using namespace textile_handling;
 using namespace textile_handling::recognition;
 using textile_handling::test_support::throwsCode;
+using textile_handling::test_support::smallTowel;
+using textile_handling::test_support::testCamera;
 using textile_handling::test_support::vga;
 
 namespace {
@@ -44,16 +46,6 @@ std::string tempPath(const std::string& name) {
 
 void removeDb(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p + s);
-}
-
-TextileOutline smallTowel() {
-  TextileOutline t;
-  t.name = "small_towel";
-  t.outline = {Vec2(0, 0), Vec2(0.36, 0), Vec2(0.36, 0.24), Vec2(0, 0.24)};
-  t.named_points = {{"corner_ll", "corner", Vec2(0, 0)},       {"corner_lr", "corner", Vec2(0.36, 0)},
-                    {"corner_ur", "corner", Vec2(0.36, 0.24)}, {"corner_ul", "corner", Vec2(0, 0.24)},
-                    {"bottom_mid", "grasp", Vec2(0.18, 0)},    {"left_mid", "grasp", Vec2(0, 0.12)}};
-  return t;
 }
 
 db::DrapeBuildConfig baseConfig() {
@@ -79,15 +71,6 @@ struct Truth {
   double oracle_m = 0;
   Vec3 holdWorld() const { return positions.segment<3>(3 * held); }
 };
-
-// The camera of a test view: VGA, 1.5 m from the hold axis at azimuth `azimuth` (world), 25 cm below the
-// hold point, looking at a point 20 cm below it (tilted up), rolled by 4 degrees.
-vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
-  const Vec3 eye = hold - 1.5 * vision::viewDirection(azimuth) + Vec3(0, 0, -0.25);
-  vision::CameraPose pose = vision::CameraPose::lookAt(eye, hold + Vec3(0, 0, -0.2));
-  pose.rotation = pose.rotation * Eigen::AngleAxisd(4.0 * kPi / 180.0, Vec3::UnitZ()).toRotationMatrix();
-  return pose;
-}
 
 // Renders the truth (its gripper turned by `turn` degrees about the hold axis) and builds the observation.
 // The heading reference is the gripper's x axis, so the hold frame turns with the gripper.
