@@ -101,6 +101,36 @@ TEST_F(EvidenceTest, StoredShapesSucceedAboveTheFloors) {
   }
 }
 
+// What the hostile frames score without the floors and plausibility limits (docs/recognition.md table).
+TEST_F(EvidenceTest, HostileFramesScoreFarBelowTheFloorsWithoutThem) {
+  RecognizerOptions open;
+  open.evidence.min_score = open.evidence.min_coverage = 0;
+  open.geometry.min_fov_deg = 0;
+  open.geometry.max_fov_deg = 179.9;
+  const TextileRecognizer rec(db_path_, open);
+  const EvidenceOptions floors;
+  auto measure = [&](const char* what, const CameraObservation& ob) {
+    try {
+      const RecognitionResult r = rec.recognize(ob);
+      std::printf("%-22s score %.3f coverage %.3f\n", what, r.score, r.coverage);
+      EXPECT_TRUE(r.score < floors.min_score || r.coverage < floors.min_coverage) << what;
+    } catch (const RecognitionError& e) {
+      std::printf("%-22s %s\n", what, e.what());
+    }
+  };
+  CameraObservation ob = observation();
+  ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));
+  measure("all black", ob);
+  ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));
+  measure("uniform grey", ob);
+  ob = observation();
+  ob.intrinsics.fx = ob.intrinsics.fy = 1.0;
+  measure("fx = fy = 1", ob);
+  ob = observation();
+  ob.intrinsics.fx = 1.0;
+  measure("fx = 1", ob);
+}
+
 TEST_F(EvidenceTest, HostileFramesAreInsufficientEvidence) {
   const TextileRecognizer rec(db_path_);
   CameraObservation ob = observation();

@@ -226,11 +226,11 @@ constexpr double kSupported = 0.015;
 double poseBound(const Truth& t) { return t.oracle_m <= kSupported ? kGraspTolerance : 2 * t.oracle_m + 0.02; }
 
 void report(const char* what, const Truth& t, double az, const RecognitionResult& r, int cd, const PoseErrors& e) {
-  std::printf("%-7s truth (%.2f, %.2f) az %5.1f -> hold (%.2f, %.2f) class dist %d view %5.1f rot %6.1f score %.3f "
+  std::printf("%-7s truth (%.2f, %.2f) az %5.1f -> hold (%.2f, %.2f) class dist %d view %5.1f rot %6.1f score %.3f cov %.3f "
               "conf %.3f amb %d depth %d | poses max %5.1f mm (lateral %5.1f, depth %5.1f), oracle %5.1f mm | fit %d moved %4.1f mm, "
               "depth residual %4.1f -> %4.1f mm | %3.0f ms\n",
               what, t.hold.x(), t.hold.y(), az, r.hold_point.x(), r.hold_point.y(), cd, r.view_angle_deg, r.rotation_deg,
-              r.score, r.confidence, (int)r.front_back_ambiguous, (int)r.depth_decided, 1e3 * e.max_3d,
+              r.score, r.coverage, r.confidence, (int)r.front_back_ambiguous, (int)r.depth_decided, 1e3 * e.max_3d,
               1e3 * e.max_lateral, 1e3 * e.max_depth, 1e3 * t.oracle_m, (int)r.shape_fit.applied,
               1e3 * r.shape_fit.max_displacement_m, 1e3 * r.shape_fit.mean_depth_residual_before_m,
               1e3 * r.shape_fit.mean_depth_residual_after_m, r.total_ms);
