@@ -41,8 +41,7 @@ std::string dbCopy(const std::string& from, const std::string& name) {
 class EvidenceTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = (std::filesystem::temp_directory_path() / ("th_evidence_" + std::to_string(::getpid()))).string();
-    std::filesystem::create_directories(dir_);
+    dir_ = test_support::freshTempDir("th_evidence");
     db_path_ = dir_ + "/db.sqlite";
     db::HangingDrapeDatabase db(db_path_);
     db::DrapeBuildConfig c;

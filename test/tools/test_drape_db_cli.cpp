@@ -64,8 +64,7 @@ ProcessRun runDrapeDb(const std::vector<std::string>& args, const std::string& d
 class DrapeDbCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = (std::filesystem::temp_directory_path() / ("th_drape_db_cli_" + std::to_string(::getpid()))).string();
-    std::filesystem::create_directories(dir_);
+    dir_ = test_support::freshTempDir("th_drape_db_cli");
     db_ = dir_ + "/good.sqlite";
     db::HangingDrapeDatabase database(db_);
     db::DrapeBuildConfig c;
