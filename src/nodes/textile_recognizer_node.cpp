@@ -114,6 +114,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   o.max_image_pixels = max_image_pixels_;
   o.evidence.min_score = finiteParam(pnh, "evidence/min_score", o.evidence.min_score, 0.0);
   o.evidence.min_coverage = finiteParam(pnh, "evidence/min_coverage", o.evidence.min_coverage, 0.0);
+  o.evidence.max_colour_fraction = finiteParam(pnh, "evidence/max_colour_fraction", o.evidence.max_colour_fraction, 0.0);
   o.evidence.max_lost_view_fraction =
       finiteParam(pnh, "evidence/max_lost_view_fraction", o.evidence.max_lost_view_fraction, 0.0);
   pnh.param("evidence/ignore_unbuilt_textiles", o.evidence.ignore_unbuilt_textiles, o.evidence.ignore_unbuilt_textiles);

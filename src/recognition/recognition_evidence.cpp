@@ -16,6 +16,8 @@ void EvidenceOptions::validate() const {
   if (!unit(min_score)) throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.min_score must be in [0, 1]");
   if (!unit(min_coverage))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.min_coverage must be in [0, 1]");
+  if (!unit(max_colour_fraction))
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.max_colour_fraction must be in [0, 1]");
   if (!unit(max_lost_view_fraction))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.max_lost_view_fraction must be in [0, 1]");
 }
@@ -97,6 +99,17 @@ void checkEvidence(double score, double coverage, const EvidenceOptions& o) {
   os << "the best match is too weak to report: silhouette score " << score << " (floor " << o.min_score
      << "), coverage " << coverage << " (floor " << o.min_coverage
      << "); is a textile held in front of the expected background?";
+  throw RecognitionError(RecognitionErrorCode::kInsufficientEvidence, os.str());
+}
+
+void checkColourFraction(double colour_fraction, const EvidenceOptions& o) {
+  if (!(colour_fraction > o.max_colour_fraction)) return;
+  std::ostringstream os;
+  os.precision(3);
+  os << "the colour model marks " << 100 * colour_fraction << " % of the image as textile (ceiling "
+     << 100 * o.max_colour_fraction
+     << " %): the frame does not show the expected background (dark or overexposed frame, covered lens, "
+        "other backdrop?)";
   throw RecognitionError(RecognitionErrorCode::kInsufficientEvidence, os.str());
 }
 

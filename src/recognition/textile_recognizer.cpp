@@ -369,6 +369,7 @@ struct PreparedImage {
   cv::Mat depth_m;   // CV_32FC1 metres (NaN = none) or empty
   bool used_depth = false;
   double relative_view_deg = 0;
+  double colour_fraction = -1;
 };
 
 // Sparse depth image (nearest point per pixel) of a cloud, for the depth check.
@@ -418,8 +419,10 @@ PreparedImage prepare(const CameraObservation& obs, const RecognizerOptions& o) 
       cluster = pointCloudClusterMask(obs.points, p.g, o.segmentation.depth, &points);
   }
   const SegmentationResult seg = segmentTextile(obs.image, obs.encoding, p.g, o.segmentation, cluster, points);
+  checkColourFraction(seg.colour_fraction, o.evidence);
   p.mask = seg.mask;
   p.used_depth = seg.used_depth;
+  p.colour_fraction = seg.colour_fraction;
   return p;
 }
 
@@ -911,6 +914,7 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   } catch (const std::invalid_argument& e) {
     fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
   }
+  res.colour_fraction = imgs[0].colour_fraction;
   res.coverage = silhouetteCoverage(res.query_masks.front(), res.matched_mask, R);
   checkEvidence(res.score, res.coverage, o.evidence);
   res.skipped_views = st->skipped.size();

@@ -91,10 +91,11 @@ TEST_F(EvidenceTest, StoredShapesSucceedAboveTheFloors) {
   const EvidenceOptions floors;
   for (double az : {0.0, 60.0, 150.0, 270.0}) {
     const RecognitionResult r = rec.recognize(observation(az));
-    std::printf("azimuth %5.1f: score %.3f coverage %.3f (floors %.2f, %.2f)\n", az, r.score, r.coverage,
-                floors.min_score, floors.min_coverage);
+    std::printf("azimuth %5.1f: score %.3f coverage %.3f colour fraction %.3f (floors %.2f, %.2f, ceiling %.2f)\n", az,
+                r.score, r.coverage, r.colour_fraction, floors.min_score, floors.min_coverage, floors.max_colour_fraction);
     EXPECT_GE(r.score, floors.min_score + 0.1) << "no margin above the score floor at azimuth " << az;
     EXPECT_GE(r.coverage, floors.min_coverage + 0.1) << "no margin above the coverage floor at azimuth " << az;
+    EXPECT_LE(r.colour_fraction, floors.max_colour_fraction - 0.2) << "no margin below the colour ceiling at azimuth " << az;
     EXPECT_EQ(r.skipped_views, 0u);
     EXPECT_TRUE(r.warnings.empty());
   }
@@ -104,15 +105,18 @@ TEST_F(EvidenceTest, StoredShapesSucceedAboveTheFloors) {
 TEST_F(EvidenceTest, HostileFramesScoreFarBelowTheFloorsWithoutThem) {
   RecognizerOptions open;
   open.evidence.min_score = open.evidence.min_coverage = 0;
+  open.evidence.max_colour_fraction = 1;
   open.geometry.min_fov_deg = 0;
   open.geometry.max_fov_deg = 179.9;
   const TextileRecognizer rec(db_path_, open);
   const EvidenceOptions floors;
-  auto measure = [&](const char* what, const CameraObservation& ob) {
+  auto measure = [&](const char* what, const CameraObservation& ob, bool hostile = true) {
     try {
       const RecognitionResult r = rec.recognize(ob);
-      std::printf("%-22s score %.3f coverage %.3f\n", what, r.score, r.coverage);
-      EXPECT_TRUE(r.score < floors.min_score || r.coverage < floors.min_coverage) << what;
+      std::printf("%-22s score %.3f coverage %.3f colour fraction %.3f\n", what, r.score, r.coverage, r.colour_fraction);
+      EXPECT_TRUE(!hostile || r.score < floors.min_score || r.coverage < floors.min_coverage ||
+                  r.colour_fraction > floors.max_colour_fraction)
+          << what;
     } catch (const RecognitionError& e) {
       std::printf("%-22s %s\n", what, e.what());
     }
@@ -122,6 +126,16 @@ TEST_F(EvidenceTest, HostileFramesScoreFarBelowTheFloorsWithoutThem) {
   measure("all black", ob);
   ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));
   measure("uniform grey", ob);
+  ob = observation();
+  ob.depth = vision::renderShaded(mesh_.positions, mesh_.triangles, [&] {
+               vision::ShadedRenderOptions ro;
+               ro.intrinsics = vga();
+               ro.camera = test_support::testCamera(mesh_.positions.segment<3>(3 * mesh_.held_particle), 60.0);
+               return ro;
+             }()).depth;
+  measure("stored shape, depth", ob, false);
+  ob.image.setTo(cv::Scalar(0, 0, 0));
+  measure("all black, depth", ob);
   ob = observation();
   ob.intrinsics.fx = ob.intrinsics.fy = 1.0;
   measure("fx = fy = 1", ob);
@@ -136,9 +150,26 @@ TEST_F(EvidenceTest, HostileFramesAreInsufficientEvidence) {
   std::string msg;
   ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(0, 0, 0));  // all black: everything differs from the background
   EXPECT_TRUE(throwsCode([&] { rec.recognize(ob); }, RecognitionErrorCode::kInsufficientEvidence, &msg)) << msg;
-  EXPECT_NE(msg.find("floor"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("% of the image"), std::string::npos) << msg;
+  // Depth still outlines the textile, yet the colour frame carries no evidence.
+  CameraObservation with_depth = observation();
+  with_depth.depth = vision::renderShaded(mesh_.positions, mesh_.triangles, [&] {
+                       vision::ShadedRenderOptions ro;
+                       ro.intrinsics = vga();
+                       ro.camera = test_support::testCamera(mesh_.positions.segment<3>(3 * mesh_.held_particle), 60.0);
+                       return ro;
+                     }()).depth;
+  with_depth.image.setTo(cv::Scalar(0, 0, 0));
+  EXPECT_TRUE(throwsCode([&] { rec.recognize(with_depth); }, RecognitionErrorCode::kInsufficientEvidence, &msg)) << msg;
   ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));  // uniform grey
   EXPECT_TRUE(throwsCode([&] { rec.recognize(ob); }, RecognitionErrorCode::kInsufficientEvidence, &msg)) << msg;
+  // Without the colour ceiling the score and coverage floors still refuse it.
+  RecognizerOptions no_ceiling;
+  no_ceiling.evidence.max_colour_fraction = 1.0;
+  EXPECT_TRUE(throwsCode([&] { TextileRecognizer(db_path_, no_ceiling).recognize(ob); },
+                         RecognitionErrorCode::kInsufficientEvidence, &msg))
+      << msg;
+  EXPECT_NE(msg.find("floor"), std::string::npos) << msg;
   // A grey 8000 x 8000 frame (with matching intrinsics) is refused by its size before any conversion.
   CameraObservation big = ob;
   big.image = cv::Mat(8000, 8000, CV_8UC1, cv::Scalar(128));

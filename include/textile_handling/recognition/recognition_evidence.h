@@ -22,6 +22,11 @@ struct EvidenceOptions {
   /// than any stored shape (a dark or uniform frame, the background segmented as textile) covers its
   /// match but is covered by it only in part.
   double min_coverage = 0.7;
+  /// Ceiling of the share of the image the colour model marks as textile (SegmentationResult::
+  /// colour_fraction, every image). A cell camera sees the held textile against its backdrop; a frame
+  /// that differs from the backdrop almost everywhere (dark, overexposed, covered lens, another
+  /// backdrop) carries no colour evidence, even where depth still outlines a shape.
+  double max_colour_fraction = 0.6;
   /// A selected textile whose loaded views (or hold points) fall short of what the database says its
   /// finished simulations stored by more than this fraction makes every result kIncompleteDatabase.
   double max_lost_view_fraction = 0.05;
@@ -69,6 +74,10 @@ double silhouetteCoverage(const vision::BitMask& query, const vision::BitMask& m
 /// Throws RecognitionError(kInsufficientEvidence) with both values and floors when score or coverage
 /// is below its floor (or not a number).
 void checkEvidence(double score, double coverage, const EvidenceOptions& o);
+
+/// Throws RecognitionError(kInsufficientEvidence) when the colour model marks more than
+/// max_colour_fraction of the image as textile (a negative fraction, no colour model, passes).
+void checkColourFraction(double colour_fraction, const EvidenceOptions& o);
 
 /// Throws RecognitionError(kImageTooLarge) when width x height exceeds max_pixels (`what` names the image).
 void checkPixelLimit(std::int64_t width, std::int64_t height, std::int64_t max_pixels, const std::string& what);

@@ -194,6 +194,7 @@ struct RecognitionResult {
 
   // ---- evidence ----
   double coverage = 0;                  ///< see EvidenceOptions::min_coverage
+  double colour_fraction = -1;          ///< first image; see EvidenceOptions::max_colour_fraction
   std::size_t skipped_views = 0;        ///< damaged stored views left out at the last load
   /// Load problems that did not stop the recognition: damaged views skipped, unbuilt textiles ignored.
   std::vector<std::string> warnings;
