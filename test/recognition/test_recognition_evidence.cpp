@@ -61,8 +61,9 @@ class EvidenceTest : public ::testing::Test {
   }
   static void TearDownTestSuite() { std::filesystem::remove_all(dir_); }
 
-  // The stored shape of the first simulation seen by the test camera at a stored azimuth.
-  static CameraObservation observation(double azimuth = 60.0) {
+  // The stored shape of the first simulation seen by the test camera at a stored azimuth (with its
+  // rendered depth if `depth`).
+  static CameraObservation observation(double azimuth = 60.0, bool depth = false) {
     const Vec3 hold = mesh_.positions.segment<3>(3 * mesh_.held_particle);
     vision::ShadedRenderOptions ro;
     ro.intrinsics = vga();
@@ -72,6 +73,7 @@ class EvidenceTest : public ::testing::Test {
     const vision::ShadedImage img = vision::renderShaded(mesh_.positions, mesh_.triangles, ro);
     CameraObservation ob;
     ob.image = img.bgr;
+    if (depth) ob.depth = img.depth;
     ob.intrinsics = ro.intrinsics;
     ob.hold_camera = ro.camera.toCamera(hold);
     ob.up_camera = ro.camera.rotation.transpose() * Vec3::UnitZ();
@@ -126,13 +128,7 @@ TEST_F(EvidenceTest, HostileFramesScoreFarBelowTheFloorsWithoutThem) {
   measure("all black", ob);
   ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));
   measure("uniform grey", ob);
-  ob = observation();
-  ob.depth = vision::renderShaded(mesh_.positions, mesh_.triangles, [&] {
-               vision::ShadedRenderOptions ro;
-               ro.intrinsics = vga();
-               ro.camera = test_support::testCamera(mesh_.positions.segment<3>(3 * mesh_.held_particle), 60.0);
-               return ro;
-             }()).depth;
+  ob = observation(60.0, true);
   measure("stored shape, depth", ob, false);
   ob.image.setTo(cv::Scalar(0, 0, 0));
   measure("all black, depth", ob);
@@ -152,13 +148,7 @@ TEST_F(EvidenceTest, HostileFramesAreInsufficientEvidence) {
   EXPECT_TRUE(throwsCode([&] { rec.recognize(ob); }, RecognitionErrorCode::kInsufficientEvidence, &msg)) << msg;
   EXPECT_NE(msg.find("% of the image"), std::string::npos) << msg;
   // Depth still outlines the textile, yet the colour frame carries no evidence.
-  CameraObservation with_depth = observation();
-  with_depth.depth = vision::renderShaded(mesh_.positions, mesh_.triangles, [&] {
-                       vision::ShadedRenderOptions ro;
-                       ro.intrinsics = vga();
-                       ro.camera = test_support::testCamera(mesh_.positions.segment<3>(3 * mesh_.held_particle), 60.0);
-                       return ro;
-                     }()).depth;
+  CameraObservation with_depth = observation(60.0, true);
   with_depth.image.setTo(cv::Scalar(0, 0, 0));
   EXPECT_TRUE(throwsCode([&] { rec.recognize(with_depth); }, RecognitionErrorCode::kInsufficientEvidence, &msg)) << msg;
   ob.image = cv::Mat(480, 640, CV_8UC3, cv::Scalar(128, 128, 128));  // uniform grey
