@@ -62,10 +62,15 @@ def main():
     def on_result(msg):
         if not msg.success:
             state["failed"] += 1
-            print("[recognition] frame at t=%.2f s: no result: %s" % (msg.header.stamp.to_sec(), msg.message), flush=True)
+            print("[recognition] frame at t=%.2f s: no result (%s): %s"
+                  % (msg.header.stamp.to_sec(), msg.reason_code, msg.message), flush=True)
+            for w in msg.warnings:
+                print("    warning: %s" % w, flush=True)
             return
         state["ok"] += 1
         state["last"] = time.time()
+        for w in msg.warnings:
+            print("    warning: %s" % w, flush=True)
         print("[recognition] frame at t=%.2f s: textile '%s' (id %d) held at (%.3f, %.3f) m, view %.0f deg, "
               "score %.2f, confidence %.2f, %d image(s) fused, %.0f ms"
               % (msg.header.stamp.to_sec(), msg.textile_name, msg.textile_id, msg.hold_x, msg.hold_y,

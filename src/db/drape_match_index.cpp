@@ -28,6 +28,13 @@ std::optional<std::size_t> DrapeMatchIndex::classOf(const std::string& textile, 
   return best;
 }
 
+std::size_t DrapeMatchIndex::loadedViews(const std::string& textile) const {
+  std::size_t n = 0;
+  for (std::size_t e = 0; e < entry_class.size(); ++e)
+    if (entry_class[e] < classes.size() && classes[entry_class[e]].textile == textile) ++n;
+  return n;
+}
+
 bool DrapeMatchIndex::classesNeighbour(std::size_t a, std::size_t b, bool diagonal) const {
   if (a >= classes.size() || b >= classes.size()) return false;
   if (a == b) return true;
@@ -72,23 +79,49 @@ void assignLatticeIndices(DrapeMatchIndex& index) {
   }
 }
 
+// The selection of finished simulations shared by every query of this file (?1 textile name or '', ?2 = 1
+// with a spacing ?3, ?4 = 1 to include mirror-derived rows); s = simulations, t = textiles.
+const char* storedViewFilter() {
+  // Only the textile's active generation: rows of a resimulation in progress are invisible to readers.
+  return "s.status = 'done' AND s.generation = t.generation AND (?1 = '' OR t.name = ?1) "
+         "AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) AND (?4 = 1 OR s.source = 'identity')";
+}
+
+void bindFilter(SqliteStatement& st, const MatchIndexOptions& options) {
+  st.bind(1, options.textile)
+      .bind(2, options.spacing ? 1 : 0)
+      .bind(3, options.spacing ? *options.spacing : 0.0)
+      .bind(4, options.include_derived ? 1 : 0);
+}
+
 }  // namespace
+
+std::map<std::string, StoredViewCount> countStoredViews(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
+  return db.withConnection([&](SqliteConnection& conn) {
+    SqliteStatement st = conn.prepare(
+        std::string("SELECT t.name, count(*), COALESCE(sum(s.view_count), 0) FROM simulations s JOIN textiles t ON "
+                    "t.id = s.textile_id WHERE ") +
+        storedViewFilter() + " GROUP BY t.name");
+    bindFilter(st, options);
+    std::map<std::string, StoredViewCount> out;
+    while (st.step()) out[st.getText(0)] = StoredViewCount{st.getInt(1), st.getInt(2)};
+    return out;
+  });
+}
 
 DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   DrapeMatchIndex index;
   db.withConnection([&](SqliteConnection& conn) {
-    std::string sql =
-        "SELECT v.id, v.view_angle_deg, v.projection, v.width_px, v.height_px, v.metres_per_pixel, v.top_margin_px, "
-        "v.mask, s.id, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, t.name, t.symmetry, t.symmetry_cx, "
-        "t.symmetry_cy FROM views v JOIN simulations s ON s.id = v.simulation_id JOIN textiles t ON t.id = s.textile_id "
-        "WHERE s.status = 'done' AND s.generation = t.generation AND (?1 = '' OR t.name = ?1) AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) "
-        "AND (?4 = 1 OR s.source = 'identity') ORDER BY s.id, v.view_angle_deg";
+    const std::string sql =
+        std::string(
+            "SELECT v.id, v.view_angle_deg, v.projection, v.width_px, v.height_px, v.metres_per_pixel, "
+            "v.top_margin_px, v.mask, s.id, s.hold_x, s.hold_y, s.lattice_i, s.lattice_j, s.source, t.name, "
+            "t.symmetry, t.symmetry_cx, t.symmetry_cy FROM views v JOIN simulations s ON s.id = v.simulation_id "
+            "JOIN textiles t ON t.id = s.textile_id WHERE ") +
+        storedViewFilter() + " ORDER BY s.id, v.view_angle_deg";
     SqliteStatement st = conn.prepare(sql);
-    st.bind(1, options.textile)
-        .bind(2, options.spacing ? 1 : 0)
-        .bind(3, options.spacing ? *options.spacing : 0.0)
-        .bind(4, options.include_derived ? 1 : 0);
+    bindFilter(st, options);
     std::int64_t last_sim = -1;
     std::size_t current = 0;
     bool first = true;
@@ -96,11 +129,18 @@ DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchI
     while (st.step()) {
       const std::int64_t view_id = st.getInt(0);
       const std::string what = "view " + std::to_string(view_id);
-      // The blob is checked (tag, version, size, CRC, padding) and copied straight into the mask.
-      vision::BitMask mask = decodeMask(st.blobData(7), static_cast<std::size_t>(st.blobSize(7)), what);
+      // The blob is checked (tag, version, size, CRC, padding) and copied straight into the mask. A
+      // damaged one costs this view only: it is recorded and the textile's other views still load.
       const int w = static_cast<int>(st.getInt(3)), h = static_cast<int>(st.getInt(4));
-      if (mask.width() != w || mask.height() != h)
-        throw BlobFormatError("mask blob of " + what + " does not match the row's window size");
+      vision::BitMask mask;
+      try {
+        mask = decodeMask(st.blobData(7), static_cast<std::size_t>(st.blobSize(7)), what);
+        if (mask.width() != w || mask.height() != h)
+          throw BlobFormatError("mask blob of " + what + " does not match the row's window size");
+      } catch (const BlobFormatError& e) {
+        index.skipped_views.push_back(SkippedView{view_id, st.getInt(8), st.getText(14), e.what()});
+        continue;
+      }
       const double mpp = st.getDouble(5), top = st.getDouble(6);
       const std::string projection = st.getText(2);
       if (first) {
@@ -161,8 +201,13 @@ DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchI
     }
   });
   if (index.matcher.empty())
-    throw NotFoundError("no finished simulations with views in '" + db.path() + "'" +
-                        (options.textile.empty() ? std::string() : " for textile '" + options.textile + "'"));
+    throw NotFoundError("no finished simulations with usable views in '" + db.path() + "'" +
+                        (options.textile.empty() ? std::string() : " for textile '" + options.textile + "'") +
+                        (index.skipped_views.empty()
+                             ? std::string()
+                             : " (" + std::to_string(index.skipped_views.size()) + " damaged views skipped, first: " +
+                                   index.skipped_views.front().reason + ")"));
+  index.stored = countStoredViews(db, options);
   assignLatticeIndices(index);
   index.load_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return index;
@@ -230,9 +275,15 @@ vision::MatchOptions metricShiftOptions(const vision::CanonicalFrame& frame, dou
   if (top_k < 1) throw InvalidInputError("top_k must be >= 1");
   if (!(frame.metres_per_pixel > 0) || !std::isfinite(frame.metres_per_pixel))
     throw InvalidInputError("frame has no valid metric scale");
+  if (max_dx_m > kMaxShiftMetres || max_dy_m > kMaxShiftMetres)
+    throw InvalidInputError("shift range must be at most " + std::to_string(kMaxShiftMetres) + " m");
+  // Capped in double before the conversion, so that no range overflows an int.
+  auto px = [&](double m, int cap) {
+    return static_cast<int>(std::min(static_cast<double>(cap), std::ceil(m / frame.metres_per_pixel - 1e-9)));
+  };
   vision::MatchOptions o;
-  o.max_dx = static_cast<int>(std::ceil(max_dx_m / frame.metres_per_pixel - 1e-9));
-  o.max_dy = static_cast<int>(std::ceil(max_dy_m / frame.metres_per_pixel - 1e-9));
+  o.max_dx = px(max_dx_m, std::max(0, frame.width_px));
+  o.max_dy = px(max_dy_m, std::max(0, frame.height_px));
   o.top_k = top_k;
   return o;
 }

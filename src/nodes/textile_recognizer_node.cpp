@@ -50,6 +50,11 @@ recognition::DepthMode depthModeFromString(const std::string& s) {
   throw std::runtime_error("parameter ~segmentation/depth_mode must be colour_only, gate, intersect or depth_only");
 }
 
+constexpr std::size_t kInfoHistory = 16;  // camera_info messages kept for pairing with images by stamp
+
+// Image encodings the recognizer takes (colour or mono; CameraObservation).
+bool supportedEncoding(const std::string& e) { return e == "bgr8" || e == "rgb8" || e == "mono8"; }
+
 }  // namespace
 
 TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandle& pnh)
@@ -103,6 +108,16 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   if (fusion_views_ < 1) throw std::runtime_error("parameter ~fusion_views must be >= 1");
   fusion_window_s_ = finiteParam(pnh, "fusion_window_s", fusion_window_s_, 0.0);
   fusion_min_separation_deg_ = finiteParam(pnh, "fusion_min_separation_deg", fusion_min_separation_deg_, 0.0);
+  camera_info_wait_s_ = finiteParam(pnh, "camera_info_wait_s", camera_info_wait_s_, 0.0);
+  camera_info_max_age_s_ = finiteParam(pnh, "camera_info_max_age_s", camera_info_max_age_s_, 0.0);
+  max_image_pixels_ = static_cast<std::int64_t>(finiteParam(pnh, "max_image_pixels", 25e6, 1.0));
+  o.max_image_pixels = max_image_pixels_;
+  o.evidence.min_score = finiteParam(pnh, "evidence/min_score", o.evidence.min_score, 0.0);
+  o.evidence.min_coverage = finiteParam(pnh, "evidence/min_coverage", o.evidence.min_coverage, 0.0);
+  o.evidence.max_colour_fraction = finiteParam(pnh, "evidence/max_colour_fraction", o.evidence.max_colour_fraction, 0.0);
+  o.evidence.max_lost_view_fraction =
+      finiteParam(pnh, "evidence/max_lost_view_fraction", o.evidence.max_lost_view_fraction, 0.0);
+  pnh.param("evidence/ignore_unbuilt_textiles", o.evidence.ignore_unbuilt_textiles, o.evidence.ignore_unbuilt_textiles);
   try {
     o.validate();
     recognizer_ = std::make_unique<recognition::TextileRecognizer>(db_path, o);
@@ -112,6 +127,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   if (!recognizer_->ready())
     ROS_WARN_NAMED("textile_recognizer", "database %s has no finished simulations yet; waiting for database_changed",
                    db_path.c_str());
+  logSkippedViews();
 
   result_pub_ = pnh.advertise<RecognitionResult>("result", 10);
   poses_pub_ = pnh.advertise<geometry_msgs::PoseArray>("grasp_poses", 10);
@@ -120,11 +136,13 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   std::string changed_topic = "drape_simulator/database_changed";
   pnh.param<std::string>("database_changed_topic", changed_topic, changed_topic);
   changed_sub_ = nh.subscribe(changed_topic, 1, &TextileRecognizerNode::databaseChanged, this);
-  camera_sub_ = it_.subscribeCamera("image", 2, &TextileRecognizerNode::imageCallback, this);
+  image_sub_ = it_.subscribe("image", 2, &TextileRecognizerNode::imageCallback, this);
+  info_sub_ = nh.subscribe(image_transport::getCameraInfoTopic(image_sub_.getTopic()), 4,
+                           &TextileRecognizerNode::infoCallback, this);
   if (use_depth_) depth_sub_ = nh.subscribe("depth", 2, &TextileRecognizerNode::depthCallback, this);
   worker_ = std::thread([this] { workerLoop(); });
   ROS_INFO_NAMED("textile_recognizer", "ready: %zu silhouettes of %zu hold points, image topic %s%s",
-                 recognizer_->silhouetteCount(), recognizer_->holdPointCount(), camera_sub_.getTopic().c_str(),
+                 recognizer_->silhouetteCount(), recognizer_->holdPointCount(), image_sub_.getTopic().c_str(),
                  use_depth_ ? ", with depth" : "");
 }
 
@@ -147,8 +165,35 @@ void TextileRecognizerNode::depthCallback(const sensor_msgs::ImageConstPtr& dept
 
 void TextileRecognizerNode::databaseChanged(const DatabaseChanged::ConstPtr&) { reload_requested_ = true; }
 
-void TextileRecognizerNode::imageCallback(const sensor_msgs::ImageConstPtr& image,
-                                          const sensor_msgs::CameraInfoConstPtr& info) {
+// Once per load: which stored views were damaged (the recognizer uses the textile's other views).
+void TextileRecognizerNode::logSkippedViews() const {
+  for (const std::string& w : recognizer_->resultWarnings()) ROS_WARN_NAMED("textile_recognizer", "%s", w.c_str());
+  for (const std::string& w : recognizer_->loadWarnings()) ROS_WARN_NAMED("textile_recognizer", "%s", w.c_str());
+}
+
+void TextileRecognizerNode::infoCallback(const sensor_msgs::CameraInfoConstPtr& info) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    infos_.push_back(info);
+    if (infos_.size() > kInfoHistory) infos_.pop_front();
+  }
+  cv_.notify_all();  // the worker may be waiting for the camera_info of its frame
+}
+
+sensor_msgs::CameraInfoConstPtr TextileRecognizerNode::matchingInfo(const ros::Time& stamp) const {
+  sensor_msgs::CameraInfoConstPtr best;
+  double best_dt = camera_info_max_age_s_;
+  for (const auto& i : infos_) {
+    const double dt = std::fabs((i->header.stamp - stamp).toSec());
+    if (dt <= best_dt) {
+      best_dt = dt;
+      best = i;
+    }
+  }
+  return best;
+}
+
+void TextileRecognizerNode::imageCallback(const sensor_msgs::ImageConstPtr& image) {
   // Never block: hand the frame to the worker, or drop it if the worker is busy.
   if (busy_) {
     ++dropped_;
@@ -157,7 +202,7 @@ void TextileRecognizerNode::imageCallback(const sensor_msgs::ImageConstPtr& imag
   }
   std::lock_guard<std::mutex> lock(mutex_);
   pending_.image = image;
-  pending_.info = info;
+  pending_.info = matchingInfo(image->header.stamp);
   pending_.depth.reset();
   if (use_depth_ && last_depth_ &&
       std::fabs((last_depth_->header.stamp - image->header.stamp).toSec()) <= depth_max_age_s_)
@@ -176,6 +221,14 @@ void TextileRecognizerNode::workerLoop() {
       if (stop_) return;
       f = pending_;
       has_frame_ = false;
+      // Its camera_info may arrive just after the image: wait a little for it; without one the frame
+      // is answered with success: false (process()).
+      if (!f.info) {
+        cv_.wait_for(lock, std::chrono::duration<double>(camera_info_wait_s_),
+                     [&] { return stop_ || matchingInfo(f.image->header.stamp) != nullptr; });
+        if (stop_) return;
+        f.info = matchingInfo(f.image->header.stamp);
+      }
       // The depth image of this frame may arrive just after the colour image: wait a little for it
       // (on the worker thread; callbacks never wait).
       if (use_depth_ && !f.depth) {
@@ -192,8 +245,10 @@ void TextileRecognizerNode::workerLoop() {
     }
     if (reload_requested_.exchange(false)) {
       try {
-        if (recognizer_->reloadIfChanged())
+        if (recognizer_->reloadIfChanged()) {
           ROS_INFO_NAMED("textile_recognizer", "database reloaded: %zu silhouettes", recognizer_->silhouetteCount());
+          logSkippedViews();
+        }
       } catch (const std::exception& e) {
         ROS_WARN_THROTTLE_NAMED(5.0, "textile_recognizer", "database reload failed (keeping the old index): %s",
                                 e.what());
@@ -209,20 +264,43 @@ void TextileRecognizerNode::workerLoop() {
   }
 }
 
-void TextileRecognizerNode::publishFailure(const std_msgs::Header& header, const std::string& why) {
+void TextileRecognizerNode::publishFailure(const std_msgs::Header& header, const std::string& code,
+                                           const std::string& why) {
   RecognitionResult r;
   r.header.stamp = header.stamp;
   r.header.frame_id = gripper_frame_;
   r.success = false;
+  r.reason_code = code;
   r.message = why;
+  r.skipped_views = static_cast<int>(recognizer_->skippedViews().size());
+  r.warnings = recognizer_->resultWarnings();
   result_pub_.publish(r);
   ROS_WARN_THROTTLE_NAMED(2.0, "textile_recognizer", "%s", why.c_str());
+}
+
+std::pair<std::string, std::string> TextileRecognizerNode::checkImageMessage(const sensor_msgs::Image& image) const {
+  const std::int64_t pixels = static_cast<std::int64_t>(image.width) * static_cast<std::int64_t>(image.height);
+  if (pixels > max_image_pixels_)
+    return {"image_too_large", "image is " + std::to_string(image.width) + " x " + std::to_string(image.height) +
+                                   " px, more than ~max_image_pixels = " + std::to_string(max_image_pixels_)};
+  if (!supportedEncoding(image.encoding))
+    return {"unsupported_encoding", "image encoding '" + image.encoding + "' is not bgr8, rgb8 or mono8"};
+  return {};
 }
 
 void TextileRecognizerNode::process(const Frame& f) {
   const auto t0 = std::chrono::steady_clock::now();
   const std_msgs::Header& h = f.image->header;
-  if (h.frame_id.empty()) return publishFailure(h, "image has an empty frame_id");
+  if (h.frame_id.empty()) return publishFailure(h, "invalid_image", "image has an empty frame_id");
+  // Before any conversion: the size and encoding come from the message header.
+  const auto refused = checkImageMessage(*f.image);
+  if (!refused.first.empty()) return publishFailure(h, refused.first, refused.second);
+  if (f.depth && static_cast<std::int64_t>(f.depth->width) * f.depth->height > max_image_pixels_)
+    return publishFailure(h, "image_too_large", "depth image is larger than ~max_image_pixels");
+  if (!f.info)
+    return publishFailure(h, "missing_camera_info",
+                          "no camera_info with the image's stamp " + std::to_string(h.stamp.toSec()) + " s on " +
+                              info_sub_.getTopic() + " (waited " + std::to_string(camera_info_wait_s_) + " s)");
   recognition::CameraObservation obs;
   // Intrinsics from camera_info (K row-major).
   const auto& K = f.info->K;
@@ -233,19 +311,19 @@ void TextileRecognizerNode::process(const Frame& f) {
   obs.intrinsics.width = static_cast<int>(f.info->width);
   obs.intrinsics.height = static_cast<int>(f.info->height);
   if (!(K[0] > 0) || !(K[4] > 0) || !std::isfinite(K[2]) || !std::isfinite(K[5]))
-    return publishFailure(h, "camera_info has no valid intrinsics (K)");
+    return publishFailure(h, "invalid_geometry", "camera_info has no valid intrinsics (K)");
   if (f.info->width != f.image->width || f.info->height != f.image->height)
-    return publishFailure(h, "camera_info size differs from the image size");
+    return publishFailure(h, "invalid_geometry", "camera_info size differs from the image size");
   try {
     obs.image = cv_bridge::toCvShare(f.image)->image;
     obs.encoding = f.image->encoding;
     if (f.depth) {
       obs.depth = cv_bridge::toCvShare(f.depth)->image;
       if (f.depth->encoding != "32FC1" && f.depth->encoding != "16UC1")
-        return publishFailure(h, "depth encoding " + f.depth->encoding + " is not 32FC1 or 16UC1");
+        return publishFailure(h, "invalid_depth", "depth encoding " + f.depth->encoding + " is not 32FC1 or 16UC1");
     }
   } catch (const cv_bridge::Exception& e) {
-    return publishFailure(h, std::string("image conversion: ") + e.what());
+    return publishFailure(h, "invalid_image", std::string("image conversion: ") + e.what());
   }
   // Geometry from tf at the image's stamp: hold point (gripper origin), up and heading in the camera.
   Eigen::Isometry3d camera_gripper, camera_up;
@@ -255,7 +333,7 @@ void TextileRecognizerNode::process(const Frame& f) {
     camera_up = tf2::transformToEigen(
         tf_buffer_.lookupTransform(h.frame_id, up_frame_, h.stamp, ros::Duration(tf_timeout_s_)));
   } catch (const tf2::TransformException& e) {
-    return publishFailure(h, std::string("tf: ") + e.what());
+    return publishFailure(h, "transform_unavailable", std::string("tf: ") + e.what());
   }
   obs.hold_camera = camera_gripper.translation();
   obs.up_camera = camera_up.linear() * Vec3::UnitZ();
@@ -274,6 +352,10 @@ void TextileRecognizerNode::process(const Frame& f) {
   for (std::size_t k : recognition::chooseFusionPartners(yaw, earlier_yaws, fusion_views_, fusion_min_separation_deg_))
     images.push_back(history_[history_.size() - 1 - k].observation);
   recognition::RecognitionResult res;
+  auto code = [](const std::exception& e) {
+    const auto* r = dynamic_cast<const recognition::RecognitionError*>(&e);
+    return r ? std::string(recognition::toString(r->code())) : std::string("internal_error");
+  };
   try {
     res = images.size() > 1 ? recognizer_->recognize(images) : recognizer_->recognize(obs);
   } catch (const std::exception& e) {
@@ -283,10 +365,10 @@ void TextileRecognizerNode::process(const Frame& f) {
         res = recognizer_->recognize(obs);
         images.resize(1);
       } catch (const std::exception& e2) {
-        return publishFailure(h, e2.what());
+        return publishFailure(h, code(e2), e2.what());
       }
     } else {
-      return publishFailure(h, e.what());
+      return publishFailure(h, code(e), e.what());
     }
   }
   // A deep copy: obs's images share the buffers of this frame's messages (toCvShare), which are freed
@@ -315,6 +397,9 @@ void TextileRecognizerNode::process(const Frame& f) {
   }
   out.view_angle_deg = res.view_angle_deg;
   out.score = res.score;
+  out.coverage = res.coverage;
+  out.skipped_views = static_cast<int>(res.skipped_views);
+  out.warnings = res.warnings;
   out.confidence = res.confidence;
   out.front_back_ambiguous = res.front_back_ambiguous;
   out.depth_used = res.depth_used;

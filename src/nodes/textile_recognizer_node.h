@@ -4,6 +4,7 @@
 // arrive while the worker is busy are dropped; callbacks never wait for recognition. docs/ros.md.
 #pragma once
 
+#include <image_transport/camera_common.h>
 #include <image_transport/image_transport.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -19,6 +20,7 @@
 #include <mutex>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include "textile_handling/DatabaseChanged.h"
 #include "textile_handling/recognition/textile_recognizer.h"
@@ -38,17 +40,22 @@ class TextileRecognizerNode {
     sensor_msgs::ImageConstPtr depth;
   };
 
-  void imageCallback(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::CameraInfoConstPtr& info);
+  void imageCallback(const sensor_msgs::ImageConstPtr& image);
+  void infoCallback(const sensor_msgs::CameraInfoConstPtr& info);
+  sensor_msgs::CameraInfoConstPtr matchingInfo(const ros::Time& stamp) const;  // mutex_ held
   void depthCallback(const sensor_msgs::ImageConstPtr& depth);
   void databaseChanged(const DatabaseChanged::ConstPtr& msg);
   void workerLoop();
   void process(const Frame& frame);
-  void publishFailure(const std_msgs::Header& header, const std::string& why);
+  void publishFailure(const std_msgs::Header& header, const std::string& code, const std::string& why);
+  void logSkippedViews() const;
+  /// Refuses an image before conversion: pixel limit, encoding (reason code, message; empty if fine).
+  std::pair<std::string, std::string> checkImageMessage(const sensor_msgs::Image& image) const;
 
   ros::NodeHandle nh_, pnh_;
   image_transport::ImageTransport it_;
-  image_transport::CameraSubscriber camera_sub_;
-  ros::Subscriber depth_sub_, changed_sub_;
+  image_transport::Subscriber image_sub_;
+  ros::Subscriber info_sub_, depth_sub_, changed_sub_;
   ros::Publisher result_pub_, poses_pub_;
   image_transport::Publisher debug_pub_;
   tf2_ros::Buffer tf_buffer_;
@@ -62,6 +69,11 @@ class TextileRecognizerNode {
   double depth_max_age_s_ = 0.05;
   double depth_wait_s_ = 0.5;   // wall time the worker waits for a frame's depth image
   bool use_depth_ = false;
+  // camera_info is paired with an image by stamp (within camera_info_max_age_s); the worker waits up to
+  // camera_info_wait_s for one that arrives after its image, then answers success: false.
+  double camera_info_wait_s_ = 0.2;
+  double camera_info_max_age_s_ = 0.0;
+  std::int64_t max_image_pixels_ = 25'000'000;
   // Multi-image fusion (thesis: two images): earlier observations of the same hold, kept while the
   // gripper turns; a new frame is fused with up to fusion_views - 1 of them whose view azimuth differs by
   // at least fusion_min_separation_deg.
@@ -81,6 +93,7 @@ class TextileRecognizerNode {
   bool has_frame_ = false, stop_ = false;
   Frame pending_;
   sensor_msgs::ImageConstPtr last_depth_;
+  std::deque<sensor_msgs::CameraInfoConstPtr> infos_;  // newest last, at most kInfoHistory
   std::atomic<bool> busy_{false}, reload_requested_{false};
   std::atomic<long> dropped_{0};
   std::thread worker_;

@@ -36,6 +36,34 @@ void validateOptions(const CameraGeometryOptions& o) {
       bad(o.max_hold_pixel_outside_px, 0, 1e9) || bad(o.rectify_epsilon_deg, 0, 10))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions,
                            "geometry: distances, the pixel margin and the rectification epsilon must be finite and >= 0");
+  if (bad(o.min_fov_deg, 0, 179) || bad(o.max_fov_deg, o.min_fov_deg, 179.9) || bad(o.max_aspect, 1, 100) ||
+      bad(o.max_principal_point_outside, 0, 100) || bad(o.max_hold_distance_m, o.min_depth_m, 1e6))
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions,
+                           "geometry: need 0 <= min_fov_deg <= max_fov_deg < 180, max_aspect in [1, 100], "
+                           "max_principal_point_outside in [0, 100], max_hold_distance_m >= min_depth_m");
+}
+
+// A camera_info that no real camera has (docs/recognition.md "Evidence"): the fields of view, the pixel
+// aspect and the principal point against CameraGeometryOptions.
+void checkPlausibleIntrinsics(const vision::PinholeIntrinsics& k, const CameraGeometryOptions& o) {
+  const double fov_x = 2 * std::atan(0.5 * k.width / k.fx) * kRadToDeg;
+  const double fov_y = 2 * std::atan(0.5 * k.height / k.fy) * kRadToDeg;
+  for (const auto& [fov, axis] : {std::make_pair(fov_x, "horizontal"), std::make_pair(fov_y, "vertical")})
+    if (!(fov >= o.min_fov_deg && fov <= o.max_fov_deg)) {
+      std::ostringstream os;
+      os << "implausible camera: fx = " << k.fx << ", fy = " << k.fy << " px on a " << k.width << " x " << k.height
+         << " image give a " << axis << " field of view of " << fov << " deg (plausible " << o.min_fov_deg << ".."
+         << o.max_fov_deg << " deg)";
+      geometryError(os.str());
+    }
+  if (!(k.fy / k.fx <= o.max_aspect && k.fx / k.fy <= o.max_aspect))
+    geometryError("implausible camera: fy / fx = " + std::to_string(k.fy / k.fx) + " (plausible 1/" +
+                  std::to_string(o.max_aspect) + ".." + std::to_string(o.max_aspect) + ")");
+  const double mx = o.max_principal_point_outside * k.width, my = o.max_principal_point_outside * k.height;
+  if (!(k.cx >= -mx && k.cx <= k.width + mx && k.cy >= -my && k.cy <= k.height + my))
+    geometryError("implausible camera: principal point (" + std::to_string(k.cx) + ", " + std::to_string(k.cy) +
+                  ") lies more than " + std::to_string(o.max_principal_point_outside) +
+                  " image sizes outside the image");
 }
 
 }  // namespace
@@ -62,7 +90,11 @@ HoldGeometry computeHoldGeometry(const vision::PinholeIntrinsics& k, const Vec3&
     geometryError("camera intrinsics are not finite (fx, fy, cx, cy must be numbers)");
   if (!(k.fx > 0) || !(k.fy > 0)) geometryError("camera focal lengths fx, fy must be > 0");
   if (k.width <= 0 || k.height <= 0) geometryError("camera image size (width, height) must be > 0");
+  checkPlausibleIntrinsics(k, o);
   if (!hold.allFinite()) geometryError("hold point " + vecText(hold) + " is not finite");
+  if (!(hold.norm() <= o.max_hold_distance_m))
+    geometryError("hold point " + vecText(hold) + " is farther than " + std::to_string(o.max_hold_distance_m) +
+                  " m from the camera");
   if (!up_in.allFinite() || !(up_in.norm() > 1e-9)) geometryError("up vector " + vecText(up_in) + " is zero or not finite");
   if (heading && !heading->allFinite()) geometryError("heading reference " + vecText(*heading) + " is not finite");
   if (!(hold.z() > 0)) geometryError("hold point " + vecText(hold) + " is behind the camera (z <= 0 in the optical frame)");

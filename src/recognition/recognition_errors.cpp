@@ -15,6 +15,9 @@ const char* toString(RecognitionErrorCode code) {
     case RecognitionErrorCode::kUnknownTextile: return "unknown_textile";
     case RecognitionErrorCode::kNoMatch: return "no_match";
     case RecognitionErrorCode::kInvalidOptions: return "invalid_options";
+    case RecognitionErrorCode::kImageTooLarge: return "image_too_large";
+    case RecognitionErrorCode::kInsufficientEvidence: return "insufficient_evidence";
+    case RecognitionErrorCode::kIncompleteDatabase: return "incomplete_database";
   }
   return "unknown";
 }

@@ -248,6 +248,7 @@ SegmentationResult segmentTextile(const cv::Mat& image, const std::string& encod
         m[x] = d2 > t2 ? 255 : 0;
       }
     }
+    res.colour_fraction = static_cast<double>(cv::countNonZero(mask)) / static_cast<double>(mask.total());
     if (use_depth) {
       cv::Mat gate;  // never write into the caller's mask
       if (o.depth_mode == DepthMode::kGate && o.gate_dilation_px > 0)

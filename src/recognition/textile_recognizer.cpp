@@ -54,6 +54,9 @@ struct TextileRecognizer::State {
   std::string fingerprint;
   std::size_t silhouettes = 0, hold_points = 0;
   std::vector<std::string> warnings;
+  std::vector<db::SkippedView> skipped;       // damaged views left out
+  std::vector<std::string> problems;          // completeness problems: every result is kIncompleteDatabase
+  std::vector<std::string> result_warnings;   // carried by every result
   mutable std::mutex cache_mutex;  // rest shapes loaded on demand
   mutable std::map<std::int64_t, std::shared_ptr<const StoredShape>> cache;
 };
@@ -100,6 +103,8 @@ void RecognizerOptions::validate() const {
   if (!(grasp.boundary_tolerance_m >= 0) || !std::isfinite(grasp.boundary_tolerance_m))
     bad("grasp.boundary_tolerance_m must be finite and >= 0");
   if (canonicalisation.max_canvas_px < 16) bad("canonicalisation.max_canvas_px must be >= 16");
+  if (max_image_pixels < 1) bad("max_image_pixels must be >= 1");
+  evidence.validate();
   if (!std::isfinite(canonicalisation.clear_above_hold_m)) bad("canonicalisation.clear_above_hold_m must be finite");
   segmentation.validate();
 }
@@ -182,6 +187,10 @@ std::shared_ptr<const TextileRecognizer::State> loadState(const db::HangingDrape
       mio.textile = t.outline.name;
       mio.spacing = o.spacing;
       mio.include_derived = o.include_derived;
+      const std::size_t first_index = st->indices.size();
+      TextileCompleteness completeness;
+      completeness.textile = t.outline.name;
+      completeness.stored = db::countStoredViews(db, mio)[t.outline.name];
       try {
         st->indices.push_back(makeLoaded(db::loadDrapeMatchIndex(db, mio)));
       } catch (const db::NotFoundError&) {
@@ -204,7 +213,11 @@ std::shared_ptr<const TextileRecognizer::State> loadState(const db::HangingDrape
       } catch (const db::BlobFormatError& e) {
         st->warnings.push_back("textile '" + t.outline.name + "' skipped (damaged data): " + e.what());
       }
+      for (std::size_t k = first_index; k < st->indices.size(); ++k)
+        addCompleteness(st->indices[k]->index, &completeness, &st->skipped);
+      noteCompleteness(completeness, o.evidence, &st->problems, &st->result_warnings);
     }
+    for (const std::string& line : skippedViewLines(st->skipped)) st->result_warnings.push_back(line);
   } catch (const RecognitionError&) {
     throw;
   } catch (const std::exception& e) {
@@ -287,6 +300,8 @@ bool TextileRecognizer::ready() const { return state()->silhouettes > 0; }
 std::size_t TextileRecognizer::silhouetteCount() const { return state()->silhouettes; }
 std::size_t TextileRecognizer::holdPointCount() const { return state()->hold_points; }
 std::vector<std::string> TextileRecognizer::loadWarnings() const { return state()->warnings; }
+std::vector<db::SkippedView> TextileRecognizer::skippedViews() const { return state()->skipped; }
+std::vector<std::string> TextileRecognizer::resultWarnings() const { return state()->result_warnings; }
 
 std::vector<db::TextileRecord> TextileRecognizer::textiles() const {
   std::vector<db::TextileRecord> out;
@@ -357,6 +372,7 @@ struct PreparedImage {
   cv::Mat depth_m;   // CV_32FC1 metres (NaN = none) or empty
   bool used_depth = false;
   double relative_view_deg = 0;
+  double colour_fraction = -1;
 };
 
 // Sparse depth image (nearest point per pixel) of a cloud, for the depth check.
@@ -374,6 +390,10 @@ cv::Mat depthFromPoints(const std::vector<Vec3>& pts, const vision::PinholeIntri
 }
 
 PreparedImage prepare(const CameraObservation& obs, const RecognizerOptions& o) {
+  // Sizes first: nothing is converted or allocated for an image beyond the pixel limit.
+  checkPixelLimit(obs.image.cols, obs.image.rows, o.max_image_pixels, "the image");
+  checkPixelLimit(obs.depth.cols, obs.depth.rows, o.max_image_pixels, "the depth image");
+  checkPixelLimit(obs.intrinsics.width, obs.intrinsics.height, o.max_image_pixels, "the camera (intrinsics size)");
   PreparedImage p;
   p.g = computeHoldGeometry(obs.intrinsics, obs.hold_camera, obs.up_camera, obs.heading_camera, o.geometry);
   const cv::Size size(p.g.intrinsics.width, p.g.intrinsics.height);
@@ -402,8 +422,10 @@ PreparedImage prepare(const CameraObservation& obs, const RecognizerOptions& o) 
       cluster = pointCloudClusterMask(obs.points, p.g, o.segmentation.depth, &points);
   }
   const SegmentationResult seg = segmentTextile(obs.image, obs.encoding, p.g, o.segmentation, cluster, points);
+  checkColourFraction(seg.colour_fraction, o.evidence);
   p.mask = seg.mask;
   p.used_depth = seg.used_depth;
+  p.colour_fraction = seg.colour_fraction;
   return p;
 }
 
@@ -459,7 +481,13 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
          "the database '" + db_->path() + "' has no finished simulations with views" +
              (o.textile_id > 0 ? " for textile id " + std::to_string(o.textile_id)
                                : (o.textile_name.empty() ? std::string() : " for textile '" + o.textile_name + "'")) +
-             (st->warnings.empty() ? std::string() : " (" + st->warnings.front() + ")"));
+             (st->warnings.empty() ? std::string() : " (" + st->warnings.front() + ")") +
+             (st->problems.empty() ? std::string() : " (" + st->problems.front() + ")"));
+  if (!st->problems.empty()) {
+    std::string all;
+    for (const std::string& p : st->problems) all += (all.empty() ? "" : "; ") + p;
+    fail(RecognitionErrorCode::kIncompleteDatabase, all);
+  }
 
   RecognitionResult res;
   // ---- geometry, segmentation ----
@@ -889,6 +917,11 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   } catch (const std::invalid_argument& e) {
     fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
   }
+  res.colour_fraction = imgs[0].colour_fraction;
+  res.coverage = silhouetteCoverage(res.query_masks.front(), res.matched_mask, R);
+  checkEvidence(res.score, res.coverage, o.evidence);
+  res.skipped_views = st->skipped.size();
+  res.warnings = st->result_warnings;
   res.total_ms = msSince(t_start);
   return res;
 }

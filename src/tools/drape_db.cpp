@@ -12,7 +12,9 @@
 //                   [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]
 //
 // Exit status: 0 success, 1 unexpected error, 2 usage or bad input, 3 database error (cannot open, unknown
-// schema version, damaged data), 4 build finished but some simulations failed.
+// schema version, damaged data), 4 build finished but some simulations failed, 5 out of memory.
+//
+// Input limits (docs/database.md "Query limits"): checked before anything is read or allocated.
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -34,6 +36,7 @@
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/thesis_benchmark.h"
+#include "textile_handling/vision/image_header.h"
 #include "textile_handling/vision/mask_cv.h"
 
 using namespace textile_handling;
@@ -41,7 +44,21 @@ using namespace textile_handling::db;
 
 namespace {
 
-constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2, kExitDatabase = 3, kExitFailedSims = 4;
+constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2, kExitDatabase = 3, kExitFailedSims = 4, kExitNoMemory = 5;
+
+// Query limits. A camera pixel covers 1 um .. 1 m at the textile (anything else is a typo, and a tiny
+// scale makes the canonical window span astronomically many pixels); hold pixels lie within 10^6 px of
+// the image; a shift search of more than 1 m is no alignment of a textile silhouette; 1000 candidates
+// are more than any database has classes worth listing.
+constexpr double kMinMetresPerPixel = 1e-6, kMaxMetresPerPixel = 1.0;
+constexpr double kMaxHoldPixel = 1e6;
+constexpr double kMaxQueryShiftMetres = 1.0;
+constexpr int kMaxTop = 1000;
+// Input files: images up to 25 MP (the recognizer's default max_image_pixels) and 256 MiB on disk; a
+// material YAML is a few hundred bytes, 1 MiB bounds the parser's memory.
+constexpr std::int64_t kMaxImagePixels = 25'000'000;
+constexpr std::uintmax_t kMaxImageFileBytes = std::uintmax_t{256} << 20;
+constexpr std::uintmax_t kMaxYamlFileBytes = std::uintmax_t{1} << 20;
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -64,7 +81,7 @@ const char* kUsage =
     "  export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
     "  bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]\n"
     "         [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]\n"
-    "exit status: 0 ok, 1 error, 2 usage/bad input, 3 database error, 4 some simulations failed\n";
+    "exit status: 0 ok, 1 error, 2 usage/bad input, 3 database error, 4 some simulations failed, 5 out of memory\n";
 
 // Minimal option parser: "--key value" pairs and "--flag" switches; repeated keys are kept in order.
 class Args {
@@ -125,6 +142,43 @@ std::vector<double> numbers(const std::string& text, std::size_t n, const std::s
   return out;
 }
 
+double numberIn(const std::string& text, double lo, double hi, const std::string& what) {
+  const double v = number(text, what);
+  if (!(v >= lo && v <= hi))
+    throw UsageError(what + ": " + text + " is out of range [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return v;
+}
+
+// Refuses a missing or too large input file before it is parsed (`what` names the option).
+void checkFileSize(const std::string& path, std::uintmax_t max_bytes, const std::string& what) {
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  if (ec) throw UsageError(what + ": cannot read '" + path + "': " + ec.message());
+  if (size > max_bytes)
+    throw UsageError(what + ": '" + path + "' is " + std::to_string(size) + " bytes, more than the limit of " +
+                     std::to_string(max_bytes));
+}
+
+// Reads an image with its size bounded: the file size, then the width and height from its header
+// (PNG, JPEG, BMP, PNM), all before OpenCV decodes (and allocates) it.
+cv::Mat readImage(const std::string& path, int flags, const std::string& what) {
+  checkFileSize(path, kMaxImageFileBytes, what);
+  vision::ImageDimensions d;
+  try {
+    d = vision::readImageDimensions(path);
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(what + ": " + e.what());
+  }
+  if (d.width > kMaxImagePixels / d.height)
+    throw UsageError(what + ": image '" + path + "' is " + std::to_string(d.width) + " x " + std::to_string(d.height) +
+                     " px, more than the limit of " + std::to_string(kMaxImagePixels) + " pixels");
+  const cv::Mat img = cv::imread(path, flags);
+  if (img.empty()) throw UsageError(what + ": cannot decode image '" + path + "'");
+  if (static_cast<std::int64_t>(img.cols) * img.rows > kMaxImagePixels)  // a header that lied
+    throw UsageError(what + ": image '" + path + "' has more than " + std::to_string(kMaxImagePixels) + " pixels");
+  return img;
+}
+
 std::string fixed(double v, int p) {
   std::ostringstream os;
   os << std::fixed << std::setprecision(p) << v;
@@ -147,6 +201,7 @@ int cmdBuild(const Args& a) {
   }
   if (a.has("--name")) c.textile.name = a.get("--name");
   if (a.has("--material")) {
+    checkFileSize(a.get("--material"), kMaxYamlFileBytes, "--material");
     try {
       c.material = loadMaterialYaml(a.get("--material"));
     } catch (const MaterialError& e) {
@@ -313,19 +368,29 @@ vision::BitMask loadQueryMask(const Args& a, const std::string& prefix, const vi
   const std::string mask_key = prefix + "mask", image_key = prefix + "image";
   if (a.has(mask_key) == a.has(image_key)) throw UsageError("give exactly one of " + mask_key + " and " + image_key);
   cv::Mat mask;
+  // Scale and hold pixel are checked before an image is read.
+  std::vector<double> hp;
+  double mpp = 0;
+  if (!a.has("--canonical")) {
+    hp = numbers(a.require(prefix + "hold-pixel"), 2, prefix + "hold-pixel");
+    for (double v : hp)
+      if (!(std::abs(v) <= kMaxHoldPixel))
+        throw UsageError(prefix + "hold-pixel: " + std::to_string(v) + " is more than " +
+                         std::to_string(static_cast<long>(kMaxHoldPixel)) + " px from the image");
+    mpp = numberIn(a.require(prefix + "metres-per-pixel"), kMinMetresPerPixel, kMaxMetresPerPixel,
+                   prefix + "metres-per-pixel");
+  }
   if (a.has(mask_key)) {
-    mask = cv::imread(a.get(mask_key), cv::IMREAD_GRAYSCALE);
-    if (mask.empty()) throw UsageError("cannot read mask image '" + a.get(mask_key) + "'");
+    mask = readImage(a.get(mask_key), cv::IMREAD_GRAYSCALE, mask_key);
     cv::threshold(mask, mask, 127, 255, cv::THRESH_BINARY);
   } else {
-    const cv::Mat img = cv::imread(a.get(image_key), cv::IMREAD_COLOR);
-    if (img.empty()) throw UsageError("cannot read image '" + a.get(image_key) + "'");
+    const cv::Mat img = readImage(a.get(image_key), cv::IMREAD_COLOR, image_key);
     SegmentationOptions so;
     if (a.has("--background")) {
       const auto v = numbers(a.get("--background"), 3, "--background");
       for (int k = 0; k < 3; ++k) so.background_bgr[static_cast<std::size_t>(k)] = static_cast<std::uint8_t>(std::clamp(v[static_cast<std::size_t>(k)], 0.0, 255.0));
     }
-    if (a.has("--threshold")) so.threshold = number(a.get("--threshold"), "--threshold");
+    if (a.has("--threshold")) so.threshold = numberIn(a.get("--threshold"), 0.0, 1000.0, "--threshold");
     mask = segmentAgainstBackground(img, so);
   }
   if (a.has("--canonical")) {
@@ -335,9 +400,6 @@ vision::BitMask loadQueryMask(const Args& a, const std::string& prefix, const vi
                        std::to_string(frame.height_px));
     return vision::fromMat(mask);
   }
-  const auto hp = numbers(a.require(prefix + "hold-pixel"), 2, prefix + "hold-pixel");
-  const double mpp = number(a.require(prefix + "metres-per-pixel"), prefix + "metres-per-pixel");
-  if (!(mpp > 0)) throw UsageError(prefix + "metres-per-pixel must be > 0");
   return vision::canonicaliseCameraMask(mask, Vec2(hp[0], hp[1]), Vec2(mpp, mpp), frame);
 }
 
@@ -352,21 +414,27 @@ int cmdQuery(const Args& a) {
   DatabaseOpenOptions o;
   o.read_only = true;
   o.create = false;
-  HangingDrapeDatabase db(a.require("--db"), o);
-  MatchIndexOptions mio;
-  mio.textile = a.get("--textile");
-  const DrapeMatchIndex index = loadDrapeMatchIndex(db, mio);
+  // Every number is checked before the database is opened.
   const int top_k = integer(a.get("--top", "5"), "--top");
-  if (top_k < 1) throw UsageError("--top must be >= 1");
+  if (top_k < 1 || top_k > kMaxTop) throw UsageError("--top must be in 1.." + std::to_string(kMaxTop));
   // Shift range in metres (default: the thesis's +-30 / +-5 px at 64 px per metre), in pixels of the
   // database's frame.
   double sx = kThesisShiftXMetres, sy = kThesisShiftYMetres;
   if (a.has("--shift")) {
     const auto v = numbers(a.get("--shift"), 2, "--shift");
-    if (v[0] < 0 || v[1] < 0) throw UsageError("--shift: ranges must be >= 0 m");
+    if (!(v[0] >= 0 && v[1] >= 0 && v[0] <= kMaxQueryShiftMetres && v[1] <= kMaxQueryShiftMetres))
+      throw UsageError("--shift: ranges must lie in [0, " + fixed(kMaxQueryShiftMetres, 1) + "] m");
     sx = v[0];
     sy = v[1];
   }
+  const double relative_view = fused ? number(a.require("--relative-view"), "--relative-view") : 0.0;
+  HangingDrapeDatabase db(a.require("--db"), o);
+  MatchIndexOptions mio;
+  mio.textile = a.get("--textile");
+  const DrapeMatchIndex index = loadDrapeMatchIndex(db, mio);
+  for (const auto& sv : index.skipped_views)
+    std::cerr << "warning: damaged view " << sv.view_id << " (simulation " << sv.simulation_id << ", textile '"
+              << sv.textile << "') skipped: " << sv.reason << "\n";
   const vision::MatchOptions mo = metricShiftOptions(index.frame, sx, sy, top_k);
   const vision::BitMask q = loadQueryMask(a, "--", index.frame);
   if (q.count() == 0) throw UsageError("the query mask is empty after canonicalisation (wrong hold pixel or scale?)");
@@ -375,7 +443,7 @@ int cmdQuery(const Args& a) {
     std::vector<vision::FusionImage> imgs(2);
     imgs[0].mask = q;
     imgs[1].mask = loadQueryMask(a, "--second-", index.frame);
-    imgs[1].relative_view_deg = number(a.require("--relative-view"), "--relative-view");
+    imgs[1].relative_view_deg = relative_view;
     r = queryDrapeFused(index, imgs, mo);
   } else {
     r = queryDrape(index, q, mo);
@@ -514,6 +582,9 @@ int main(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     std::cerr << "drape_db " << cmd << ": invalid input: " << e.what() << "\n";
     return kExitUsage;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "drape_db " << cmd << ": out of memory (an input larger than this machine can hold?)\n";
+    return kExitNoMemory;
   } catch (const std::exception& e) {
     std::cerr << "drape_db " << cmd << ": error: " << e.what() << "\n";
     return kExitError;

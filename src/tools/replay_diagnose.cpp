@@ -88,9 +88,9 @@ int main(int argc, char** argv) {
   };
   std::vector<Past> history;
   auto report = [&](const char* what, const recognition::RecognitionResult& r, const Eigen::Isometry3d& camera_gripper) {
-    std::printf(" %s hold (%.3f, %.3f) view %.1f rot %.1f score %.3f conf %.3f depth_decided %d reflected %d (refl view %.1f) "
-                "depth residual %.1f mm fit %d moved %.1f mm\n",
-                what, r.hold_point.x(), r.hold_point.y(), r.view_angle_deg, r.rotation_deg, r.score, r.confidence,
+    std::printf(" %s hold (%.3f, %.3f) view %.1f rot %.1f score %.3f coverage %.3f colour %.3f conf %.3f depth_decided %d reflected %d "
+                "(refl view %.1f) depth residual %.1f mm fit %d moved %.1f mm\n",
+                what, r.hold_point.x(), r.hold_point.y(), r.view_angle_deg, r.rotation_deg, r.score, r.coverage, r.colour_fraction, r.confidence,
                 (int)r.depth_decided, (int)r.reflected, r.reflection_view_deg, 1e3 * r.depth_residual_m,
                 (int)r.shape_fit.applied, 1e3 * r.shape_fit.max_displacement_m);
     for (const auto& c : r.top_k)

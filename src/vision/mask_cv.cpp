@@ -49,14 +49,17 @@ struct AxisWeights {
   std::vector<std::vector<float>> w;
 };
 
+// The interval is clamped to the source in double before any conversion to int (no overflow for far
+// away intervals), so a canonical pixel never holds more than n_src weights.
 AxisWeights axisWeights(int n_out, int n_src, double a0, double step) {
   AxisWeights aw;
   aw.begin.resize(static_cast<std::size_t>(n_out));
   aw.w.resize(static_cast<std::size_t>(n_out));
+  const double src_end = static_cast<double>(n_src);
   for (int i = 0; i < n_out; ++i) {
     const double lo = a0 + i * step, hi = lo + step;
-    const int j0 = std::max(0, static_cast<int>(std::floor(lo)));
-    const int j1 = std::min(n_src - 1, static_cast<int>(std::ceil(hi)) - 1);
+    const int j0 = static_cast<int>(std::floor(std::clamp(lo, 0.0, src_end)));
+    const int j1 = static_cast<int>(std::ceil(std::clamp(hi, 0.0, src_end))) - 1;
     aw.begin[static_cast<std::size_t>(i)] = j0;
     auto& w = aw.w[static_cast<std::size_t>(i)];
     for (int j = j0; j <= j1; ++j) {
@@ -65,6 +68,18 @@ AxisWeights axisWeights(int n_out, int n_src, double a0, double step) {
     }
   }
   return aw;
+}
+
+// Source pixels one canonical pixel overlaps along an axis (at most the whole source).
+double weightsPerPixel(double step, int n_src) { return std::min(static_cast<double>(n_src), std::ceil(step) + 1.0); }
+
+// Bytes canonicalCoverage() allocates for the axis weights, the horizontal pass and the result
+// (upper bound, in double so that it cannot overflow).
+double coverageBytes(const cv::Mat& mask, double sx, double sy, const CanonicalFrame& frame) {
+  const double wx = frame.width_px * weightsPerPixel(sx, mask.cols), wy = frame.height_px * weightsPerPixel(sy, mask.rows);
+  const double rows = std::min(static_cast<double>(mask.rows), frame.height_px * (std::ceil(sy) + 1.0));
+  return sizeof(float) * (wx + wy + rows * frame.width_px + static_cast<double>(frame.width_px) * frame.height_px) +
+         sizeof(std::vector<float>) * (frame.width_px + frame.height_px);
 }
 
 }  // namespace
@@ -79,8 +94,24 @@ cv::Mat canonicalCoverage(const cv::Mat& mask, const Vec2& hold_pixel, const Vec
   if (!(mpp.x() > 0) || !(mpp.y() > 0) || !mpp.allFinite())
     throw std::invalid_argument("canonicaliseCameraMask: metres_per_pixel must be finite and > 0");
 
+  if (!(std::abs(hold_pixel.x()) <= kMaxHoldPixelOffset && std::abs(hold_pixel.y()) <= kMaxHoldPixelOffset))
+    throw std::invalid_argument("canonicaliseCameraMask: hold pixel (" + std::to_string(hold_pixel.x()) + ", " +
+                                std::to_string(hold_pixel.y()) + ") is more than " +
+                                std::to_string(static_cast<long>(kMaxHoldPixelOffset)) + " px from the image");
+
   // Canonical continuous X maps to camera continuous x = hold_u + 0.5 + (X - W/2) * (mpp_c / mpp_x).
   const double sx = frame.metres_per_pixel / mpp.x(), sy = frame.metres_per_pixel / mpp.y();
+  if (!(sx >= 1.0 / kMaxScaleRatio && sx <= kMaxScaleRatio && sy >= 1.0 / kMaxScaleRatio && sy <= kMaxScaleRatio))
+    throw std::invalid_argument("canonicaliseCameraMask: metres_per_pixel (" + std::to_string(mpp.x()) + ", " +
+                                std::to_string(mpp.y()) + ") is out of range: one canonical pixel (" +
+                                std::to_string(frame.metres_per_pixel) + " m) would span " + std::to_string(sx) +
+                                " camera pixels; allowed 1/" + std::to_string(static_cast<long>(kMaxScaleRatio)) +
+                                ".." + std::to_string(static_cast<long>(kMaxScaleRatio)));
+  const double bytes = coverageBytes(mask, sx, sy, frame);
+  if (bytes > static_cast<double>(kMaxCoverageBytes))
+    throw std::invalid_argument("canonicaliseCameraMask: the resampling would allocate " +
+                                std::to_string(static_cast<long long>(bytes / (1 << 20))) + " MiB (limit " +
+                                std::to_string(kMaxCoverageBytes >> 20) + " MiB); is the canonical frame too large?");
   const double ax = hold_pixel.x() + 0.5 - 0.5 * frame.width_px * sx;
   const double ay = hold_pixel.y() + 0.5 - frame.top_margin_px * sy;
   const AxisWeights wx = axisWeights(frame.width_px, mask.cols, ax, sx);

@@ -117,3 +117,18 @@ TEST(DrapeMatchEvaluation, ShiftRangesInMetresFollowTheFrame) {
   EXPECT_THROW(metricShiftOptions(f128, std::nan(""), 0.0), InvalidInputError);
   EXPECT_THROW(metricShiftOptions(f128, 0.01, 0.01, 0), InvalidInputError);
 }
+
+TEST(DrapeMatchEvaluation, ShiftRangesAreBoundedWithoutOverflow) {
+  const vision::CanonicalFrame f128 = vision::CanonicalFrame::fromMetric(1.0, 1.0, 128);
+  // Beyond the frame a shift leaves no overlap: capped at the frame size, not an overflowed int.
+  const vision::MatchOptions wide = metricShiftOptions(f128, 5.0, 5.0);
+  EXPECT_EQ(wide.max_dx, f128.width_px);
+  EXPECT_EQ(wide.max_dy, f128.height_px);
+  try {
+    metricShiftOptions(f128, 1e9, 1e9);
+    ADD_FAILURE() << "a 1e9 m shift range was accepted";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("shift range"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(metricShiftOptions(f128, 0.0, kMaxShiftMetres * 1.01), InvalidInputError);
+}

@@ -32,6 +32,8 @@
 using namespace textile_handling;
 using namespace textile_handling::recognition;
 using textile_handling::test_support::throwsCode;
+using textile_handling::test_support::smallTowel;
+using textile_handling::test_support::testCamera;
 using textile_handling::test_support::vga;
 
 namespace {
@@ -44,16 +46,6 @@ std::string tempPath(const std::string& name) {
 
 void removeDb(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p + s);
-}
-
-TextileOutline smallTowel() {
-  TextileOutline t;
-  t.name = "small_towel";
-  t.outline = {Vec2(0, 0), Vec2(0.36, 0), Vec2(0.36, 0.24), Vec2(0, 0.24)};
-  t.named_points = {{"corner_ll", "corner", Vec2(0, 0)},       {"corner_lr", "corner", Vec2(0.36, 0)},
-                    {"corner_ur", "corner", Vec2(0.36, 0.24)}, {"corner_ul", "corner", Vec2(0, 0.24)},
-                    {"bottom_mid", "grasp", Vec2(0.18, 0)},    {"left_mid", "grasp", Vec2(0, 0.12)}};
-  return t;
 }
 
 db::DrapeBuildConfig baseConfig() {
@@ -79,15 +71,6 @@ struct Truth {
   double oracle_m = 0;
   Vec3 holdWorld() const { return positions.segment<3>(3 * held); }
 };
-
-// The camera of a test view: VGA, 1.5 m from the hold axis at azimuth `azimuth` (world), 25 cm below the
-// hold point, looking at a point 20 cm below it (tilted up), rolled by 4 degrees.
-vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
-  const Vec3 eye = hold - 1.5 * vision::viewDirection(azimuth) + Vec3(0, 0, -0.25);
-  vision::CameraPose pose = vision::CameraPose::lookAt(eye, hold + Vec3(0, 0, -0.2));
-  pose.rotation = pose.rotation * Eigen::AngleAxisd(4.0 * kPi / 180.0, Vec3::UnitZ()).toRotationMatrix();
-  return pose;
-}
 
 // Renders the truth (its gripper turned by `turn` degrees about the hold axis) and builds the observation.
 // The heading reference is the gripper's x axis, so the hold frame turns with the gripper.
@@ -243,11 +226,11 @@ constexpr double kSupported = 0.015;
 double poseBound(const Truth& t) { return t.oracle_m <= kSupported ? kGraspTolerance : 2 * t.oracle_m + 0.02; }
 
 void report(const char* what, const Truth& t, double az, const RecognitionResult& r, int cd, const PoseErrors& e) {
-  std::printf("%-7s truth (%.2f, %.2f) az %5.1f -> hold (%.2f, %.2f) class dist %d view %5.1f rot %6.1f score %.3f "
+  std::printf("%-7s truth (%.2f, %.2f) az %5.1f -> hold (%.2f, %.2f) class dist %d view %5.1f rot %6.1f score %.3f cov %.3f "
               "conf %.3f amb %d depth %d | poses max %5.1f mm (lateral %5.1f, depth %5.1f), oracle %5.1f mm | fit %d moved %4.1f mm, "
               "depth residual %4.1f -> %4.1f mm | %3.0f ms\n",
               what, t.hold.x(), t.hold.y(), az, r.hold_point.x(), r.hold_point.y(), cd, r.view_angle_deg, r.rotation_deg,
-              r.score, r.confidence, (int)r.front_back_ambiguous, (int)r.depth_decided, 1e3 * e.max_3d,
+              r.score, r.coverage, r.confidence, (int)r.front_back_ambiguous, (int)r.depth_decided, 1e3 * e.max_3d,
               1e3 * e.max_lateral, 1e3 * e.max_depth, 1e3 * t.oracle_m, (int)r.shape_fit.applied,
               1e3 * r.shape_fit.max_displacement_m, 1e3 * r.shape_fit.mean_depth_residual_before_m,
               1e3 * r.shape_fit.mean_depth_residual_after_m, r.total_ms);

@@ -36,6 +36,22 @@ struct IndexedHoldPoint {
   std::size_t class_index = 0;
 };
 
+/// A stored view that the loader could not use (damaged mask blob, window size that does not match its
+/// row): it is left out of the matcher and recorded here instead of failing the whole load.
+struct SkippedView {
+  std::int64_t view_id = 0;
+  std::int64_t simulation_id = 0;
+  std::string textile;
+  std::string reason;
+};
+
+/// What the database says a textile has (finished simulations of the selection and the views they
+/// stored, simulations.view_count), to compare with what was loaded.
+struct StoredViewCount {
+  std::int64_t done_simulations = 0;
+  std::int64_t expected_views = 0;  ///< sum of view_count over the finished simulations
+};
+
 /// Hold points equivalent under the textile's symmetry (same canonical hold point).
 struct HoldPointClass {
   std::string textile;
@@ -55,7 +71,14 @@ struct DrapeMatchIndex {
   std::vector<std::uint32_t> entry_class;
   std::map<std::string, std::size_t> hold_point_of_group;  ///< matcher hold_point_id -> hold_points index
   std::map<std::string, TextileSymmetry> symmetry;          ///< per textile name
+  /// Views left out while loading (damaged), in view id order.
+  std::vector<SkippedView> skipped_views;
+  /// Per textile name: what the database says the selection holds (see StoredViewCount).
+  std::map<std::string, StoredViewCount> stored;
   double load_seconds = 0;
+
+  /// Matcher entries loaded for a textile.
+  std::size_t loadedViews(const std::string& textile) const;
 
   /// The class of a textile's hold point (any point of the class, e.g. a mirrored one; 1 mm tolerance).
   std::optional<std::size_t> classOf(const std::string& textile, const Vec2& hold) const;
@@ -64,10 +87,18 @@ struct DrapeMatchIndex {
   bool classesNeighbour(std::size_t a, std::size_t b, bool diagonal) const;
 };
 
-/// Loads every done view (filtered) in one query. Throws NotFoundError if nothing matches,
-/// InvalidInputError if the selection mixes canonical frames or projections, BlobFormatError for a
-/// damaged mask.
+/// Loads every done view (filtered) in one query. A view whose mask blob is damaged (BlobFormatError) or
+/// does not match its row's window size is skipped and recorded in skipped_views. Throws NotFoundError
+/// if no usable view matches (the message counts the skipped ones), InvalidInputError if the selection
+/// mixes canonical frames or projections.
+///
+/// SQL note: every query selects finished simulations with the same filter (storedViewFilter() in the
+/// source), so a further condition (e.g. an active generation) is added in one place.
 DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options = {});
+
+/// Finished simulations and their stored view counts per textile name for a selection (the textile
+/// filter of `options` applies; all textiles when it is empty).
+std::map<std::string, StoredViewCount> countStoredViews(const HangingDrapeDatabase& db, const MatchIndexOptions& options = {});
 
 /// Class index of a match against an entry that belongs to no loaded hold point (e.g. a foreign entry
 /// added to the matcher as a distractor).
@@ -95,9 +126,13 @@ struct DrapeQueryResult {
 /// metres (for frames of other resolutions).
 constexpr double kThesisShiftXMetres = 30.0 / 64.0;
 constexpr double kThesisShiftYMetres = 5.0 / 64.0;
+/// Largest shift range [m] metricShiftOptions() accepts: a shift moves a silhouette within its canonical
+/// window, and no textile window is 10 m wide; beyond it the pixel count would overflow.
+constexpr double kMaxShiftMetres = 10.0;
 /// Match options with the shift range given in metres, converted to whole pixels of `frame` (rounded up;
-/// the known metric scale makes a range in metres mean the same at every canonical resolution).
-/// Throws InvalidInputError for negative or non-finite ranges or top_k < 1.
+/// the known metric scale makes a range in metres mean the same at every canonical resolution) and
+/// capped at the frame's width / height (a larger shift leaves no overlap).
+/// Throws InvalidInputError for negative, non-finite or > kMaxShiftMetres ranges or top_k < 1.
 vision::MatchOptions metricShiftOptions(const vision::CanonicalFrame& frame, double max_dx_m, double max_dy_m,
                                         int top_k = 5);
 

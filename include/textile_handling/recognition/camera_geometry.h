@@ -46,6 +46,18 @@ struct CameraGeometryOptions {
   double max_hold_pixel_outside_px = 50.0;
   /// Tilt and roll below this [deg] count as zero: the mask is used as it is (no resampling).
   double rectify_epsilon_deg = 1e-4;
+  /// Plausible cameras (kInvalidGeometry outside): the horizontal and vertical fields of view
+  /// 2 atan(size / 2f) lie in [min_fov_deg, max_fov_deg] (fx = 1 px on a VGA image means 179.6 deg:
+  /// a broken camera_info, not a lens; 3..150 deg spans telephoto to fisheye-free wide angle), fy / fx
+  /// lies in [1 / max_aspect, max_aspect] (square pixels are 1), the principal point lies at most
+  /// max_principal_point_outside times the image size outside the image, and the hold point is at most
+  /// max_hold_distance_m from the camera (a cell camera sees the textile from a few metres; farther, a
+  /// 64 px canonical window is a few camera pixels).
+  double min_fov_deg = 3.0;
+  double max_fov_deg = 150.0;
+  double max_aspect = 2.0;
+  double max_principal_point_outside = 0.5;
+  double max_hold_distance_m = 20.0;
 };
 
 /// The result of computeHoldGeometry().
@@ -85,7 +97,8 @@ struct HoldGeometry {
   Vec3 cameraToHold(const Vec3& p_camera) const { return rotation_camera_hold.transpose() * (p_camera - hold_camera); }
 };
 
-/// Validates the intrinsics (finite fx, fy > 0, finite cx, cy, width and height > 0) and the inputs,
+/// Validates the intrinsics (finite fx, fy > 0, finite cx, cy, width and height > 0, plausible field of
+/// view, aspect and principal point: see CameraGeometryOptions) and the inputs,
 /// and derives the geometry. `heading_camera` (optional) is a direction in C whose horizontal part
 /// becomes H's x axis; it must not be (nearly) vertical.
 /// Throws RecognitionError(kInvalidGeometry) with the reason: NaN anywhere, non-positive focal length or

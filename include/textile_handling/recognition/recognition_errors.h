@@ -20,6 +20,9 @@ enum class RecognitionErrorCode {
   kUnknownTextile,       ///< a textile id or name that the database does not have
   kNoMatch,              ///< the matcher found no hold point with a positive score
   kInvalidOptions,       ///< an option out of range (negative radius, NaN threshold, ...)
+  kImageTooLarge,        ///< more pixels than RecognizerOptions::max_image_pixels
+  kInsufficientEvidence, ///< the best match is below the score or coverage floor (EvidenceOptions)
+  kIncompleteDatabase,   ///< a selected textile lost stored views or has none yet (EvidenceOptions)
 };
 
 /// "invalid_image", "unsupported_encoding", ... (snake case of the enumerator).

@@ -112,6 +112,9 @@ struct SegmentationResult {
   double hold_distance_px = 0;  ///< distance of the kept component from the hold pixel (0 = contains it)
   bool used_depth = false;
   int depth_points = 0;      ///< points in the kept depth cluster(s)
+  /// Share of the image's pixels the colour model marks as textile, before depth gating and the choice
+  /// of the hold component (-1: no colour model, depth_only). Evidence: EvidenceOptions::max_colour_fraction.
+  double colour_fraction = -1;
 };
 
 /// The depth cluster connected to the hold point, as a CV_8UC1 mask (255 = kept) of the depth image's

@@ -32,6 +32,7 @@
 #include "textile_handling/recognition/camera_geometry.h"
 #include "textile_handling/recognition/grasp_poses.h"
 #include "textile_handling/recognition/recognition_errors.h"
+#include "textile_handling/recognition/recognition_evidence.h"
 #include "textile_handling/recognition/segmentation.h"
 #include "textile_handling/recognition/shape_fitting.h"
 #include "textile_handling/vision/silhouette_matcher.h"
@@ -101,6 +102,11 @@ struct RecognizerOptions {
   GraspPoseOptions grasp;
   /// Stored rest shapes kept in memory (loaded on demand).
   std::size_t mesh_cache_size = 64;
+  /// When a result may be a success (floors, lost database entries, unbuilt textiles).
+  EvidenceOptions evidence;
+  /// Largest image (and depth image) accepted, in pixels: 25 MP holds every cell camera (5472 x 3648 =
+  /// 20 MP) while bounding the per-image work (segmentation buffers are a few bytes per pixel).
+  std::int64_t max_image_pixels = 25'000'000;
 
   /// Throws RecognitionError(kInvalidOptions) naming the bad field.
   void validate() const;
@@ -185,6 +191,13 @@ struct RecognitionResult {
   vision::BitMask matched_mask;         ///< winner rendered for the first image, same frame
   vision::CanonicalFrame frame;
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0, total_ms = 0;
+
+  // ---- evidence ----
+  double coverage = 0;                  ///< see EvidenceOptions::min_coverage
+  double colour_fraction = -1;          ///< first image; see EvidenceOptions::max_colour_fraction
+  std::size_t skipped_views = 0;        ///< damaged stored views left out at the last load
+  /// Load problems that did not stop the recognition: damaged views skipped, unbuilt textiles ignored.
+  std::vector<std::string> warnings;
 };
 
 class TextileRecognizer {
@@ -215,11 +228,16 @@ class TextileRecognizer {
   std::size_t silhouetteCount() const;
   std::size_t holdPointCount() const;
   std::vector<std::string> loadWarnings() const;  ///< textiles skipped at the last load, with reasons
+  /// Damaged stored views left out at the last load (the textile's other views are used).
+  std::vector<db::SkippedView> skippedViews() const;
+  /// Warnings every result of the current load carries (RecognitionResult::warnings).
+  std::vector<std::string> resultWarnings() const;
   std::vector<db::TextileRecord> textiles() const;  ///< textiles of the database
   db::TextileRecord textile(std::int64_t id) const;  ///< throws kUnknownTextile
   RecognizerOptions options() const;  ///< a copy (the filter may change)
 
-  /// Recognises one image. Throws RecognitionError (never crashes on bad input): see the codes.
+  /// Recognises one image. Throws RecognitionError (never crashes on bad input): see the codes; a result
+  /// that returns met the minimum evidence (RecognizerOptions::evidence).
   RecognitionResult recognize(const CameraObservation& observation) const;
   /// Several images of the same hanging textile with known relative view azimuths (fusion).
   RecognitionResult recognize(const std::vector<CameraObservation>& observations) const;

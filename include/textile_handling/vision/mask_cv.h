@@ -22,6 +22,14 @@ BitMask fromMat(const cv::Mat& image);
 /// Throws std::invalid_argument for a non-positive / non-finite depth or focal length.
 Vec2 metresPerPixelAtDepth(const PinholeIntrinsics& intrinsics, double depth);
 
+/// Limits of canonicaliseCameraMask() (docs/vision.md): the hold pixel lies at most kMaxHoldPixelOffset
+/// px from the image origin; one canonical pixel spans between 1/kMaxScaleRatio and kMaxScaleRatio
+/// camera pixels (a camera 10^4 times finer or coarser than the database frame is a wrong scale, not a
+/// camera); the resampling allocates at most kMaxCoverageBytes.
+constexpr double kMaxHoldPixelOffset = 1e7;
+constexpr double kMaxScaleRatio = 1e4;
+constexpr std::size_t kMaxCoverageBytes = std::size_t{512} << 20;
+
 /// Puts a segmented camera mask into the canonical frame.
 ///  mask:            CV_8UC1, non-zero = textile (any size);
 ///  hold_pixel:      the hold point's image position (pixel centres at integer coordinates, as in the
@@ -31,7 +39,8 @@ Vec2 metresPerPixelAtDepth(const PinholeIntrinsics& intrinsics, double depth);
 /// are treated as uniformly covered squares; outside the image counts as background) and is set when
 /// that fraction is >= frame.coverage_threshold, the same rule the mesh renderer applies.
 /// Throws std::invalid_argument for an empty or wrongly typed mask, non-finite hold pixel, or
-/// non-positive scale, or an invalid frame.
+/// non-positive scale, or an invalid frame, and (before allocating) for a hold pixel, scale or
+/// resampling size beyond the limits above.
 BitMask canonicaliseCameraMask(const cv::Mat& mask, const Vec2& hold_pixel, const Vec2& metres_per_pixel,
                                const CanonicalFrame& frame = {});
 

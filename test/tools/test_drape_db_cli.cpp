@@ -1,0 +1,166 @@
+// drape_db as a process against hostile command lines and inputs: each must exit with the usage / bad
+// input status (2) and a message naming the argument at fault, instead of growing without bound. The
+// child's address space is capped at 4 GiB (setrlimit) and its run time at 120 s, so a regression fails
+// here instead of exhausting the machine.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include "../recognition/recognition_test_support.h"
+#include "textile_handling/db/drape_database_builder.h"
+
+using namespace textile_handling;
+
+namespace {
+
+struct ProcessRun {
+  int status = -1;  // exit status, or 128 + signal
+  std::string out, err;
+};
+
+std::string readAll(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+ProcessRun runDrapeDb(const std::vector<std::string>& args, const std::string& dir) {
+  const std::string out = dir + "/stdout.txt", err = dir + "/stderr.txt";
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const rlimit as{std::uint64_t{4} << 30, std::uint64_t{4} << 30};
+    ::setrlimit(RLIMIT_AS, &as);
+    ::alarm(120);
+    const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fo, 1);
+    ::dup2(fe, 2);
+    std::vector<char*> argv{const_cast<char*>(DRAPE_DB_EXE)};
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::setenv("OMP_WAIT_POLICY", "passive", 1);
+    ::execv(DRAPE_DB_EXE, argv.data());
+    ::_exit(127);
+  }
+  ProcessRun r;
+  int st = 0;
+  ::waitpid(pid, &st, 0);
+  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+  r.out = readAll(out);
+  r.err = readAll(err);
+  return r;
+}
+
+class DrapeDbCli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = test_support::freshTempDir("th_drape_db_cli");
+    db_ = dir_ + "/good.sqlite";
+    db::HangingDrapeDatabase database(db_);
+    db::DrapeBuildConfig c;
+    c.textile = test_support::smallTowel();
+    c.spacing = 0.04;
+    c.hold_points = {Vec2(0.0, 0.0), Vec2(0.18, 0.0)};
+    c.use_symmetry = false;
+    c.views.count = 4;
+    c.views.step_deg = 90;
+    c.progress = false;
+    c.workers = 1;
+    db::DrapeDatabaseBuilder b(database, c);
+    ASSERT_EQ(b.build().failed_now, 0);
+    // A 64 x 64 mask: a 20 x 40 px rectangle hanging from (32, 4).
+    cv::Mat m(64, 64, CV_8UC1, cv::Scalar(0));
+    m(cv::Rect(22, 4, 20, 40)).setTo(255);
+    mask_ = dir_ + "/ok64.png";
+    cv::imwrite(mask_, m);
+  }
+  static void TearDownTestSuite() { std::filesystem::remove_all(dir_); }
+
+  static ProcessRun query(std::vector<std::string> extra) {
+    std::vector<std::string> args{"query", "--db", db_};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return runDrapeDb(args, dir_);
+  }
+  static void expectRefused(const ProcessRun& r, const std::string& names) {
+    EXPECT_EQ(r.status, 2) << r.err;
+    EXPECT_NE(r.err.find(names), std::string::npos) << "the message does not name " << names << ": " << r.err;
+  }
+
+  static std::string dir_, db_, mask_;
+};
+std::string DrapeDbCli::dir_, DrapeDbCli::db_, DrapeDbCli::mask_;
+
+TEST_F(DrapeDbCli, AnIntactQuerySucceeds) {
+  const ProcessRun r = query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.out.find("rank"), std::string::npos) << r.out;
+}
+
+TEST_F(DrapeDbCli, HostileScalesHoldPixelsShiftsAndCountsAreRefused) {
+  expectRefused(query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "1e-300"}), "--metres-per-pixel");
+  expectRefused(query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "nan"}), "--metres-per-pixel");
+  expectRefused(query({"--mask", mask_, "--hold-pixel", "1e300,-1e300", "--metres-per-pixel", "0.01"}), "--hold-pixel");
+  expectRefused(query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01", "--shift", "1e9,1e9"}),
+                "--shift");
+  expectRefused(query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01", "--top", "1000000000"}),
+                "--top");
+  expectRefused(query({"--image", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01", "--threshold", "1e308"}),
+                "--threshold");
+}
+
+TEST_F(DrapeDbCli, HugeImagesAreRefusedFromTheirHeader) {
+  // A PNG whose header claims 20000 x 20000 px (the decoded image would take 1.2 GB): only the header is
+  // written, the tool must refuse it before decoding.
+  const std::string png = dir_ + "/huge.png";
+  {
+    const unsigned char head[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n', 0, 0, 0, 13, 'I', 'H', 'D', 'R',
+                                  0, 0, 0x4E, 0x20, 0, 0, 0x4E, 0x20, 8, 2, 0, 0, 0, 0, 0, 0, 0};
+    std::ofstream f(png, std::ios::binary);
+    f.write(reinterpret_cast<const char*>(head), sizeof head);
+  }
+  for (const char* option : {"--image", "--mask"}) {
+    const ProcessRun r = query({option, png, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
+    expectRefused(r, option);
+    EXPECT_NE(r.err.find("20000 x 20000"), std::string::npos) << "not refused for its size: " << r.err;
+  }
+  const std::string text = dir_ + "/not_an_image.png";
+  std::ofstream(text) << "hello";
+  expectRefused(query({"--mask", text, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"}), "--mask");
+}
+
+TEST_F(DrapeDbCli, HugeYamlIsRefusedBeforeParsing) {
+  const std::string yaml = dir_ + "/huge.yaml";
+  {
+    std::ofstream f(yaml);
+    f << "values:\n";
+    for (int k = 0; k < 1'500'000; ++k) f << "  - " << k << "\n";  // about 12 MB of list
+  }
+  const ProcessRun r = runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "towel", "--material", yaml}, dir_);
+  expectRefused(r, "--material");
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/never.sqlite"));
+}
+
+TEST_F(DrapeDbCli, ADamagedStoredViewIsSkippedAndReported) {
+  const std::string copy = dir_ + "/damaged.sqlite";
+  std::filesystem::copy_file(db_, copy, std::filesystem::copy_options::overwrite_existing);
+  const auto ids = test_support::storedViewIds(copy);
+  ASSERT_FALSE(ids.empty());
+  ASSERT_EQ(test_support::flipStoredMaskBytes(copy, {ids.front()}), 1);
+  const ProcessRun r = runDrapeDb({"query", "--db", copy, "--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"},
+                           dir_);
+  EXPECT_EQ(r.status, 0) << r.err;
+  EXPECT_NE(r.err.find("damaged view " + std::to_string(ids.front())), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find(std::to_string(ids.size() - 1) + " silhouettes"), std::string::npos) << r.out;
+}
+
+}  // namespace
