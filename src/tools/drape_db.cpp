@@ -36,6 +36,7 @@
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/thesis_benchmark.h"
+#include "textile_handling/sim/thread_limit.h"
 #include "textile_handling/vision/image_header.h"
 #include "textile_handling/vision/mask_cv.h"
 
@@ -43,6 +44,9 @@ using namespace textile_handling;
 using namespace textile_handling::db;
 
 namespace {
+
+// Largest --grid side: 1000 x 1000 hold points already take days to simulate.
+constexpr int kMaxGridSide = 1000;
 
 constexpr int kExitOk = 0, kExitError = 1, kExitUsage = 2, kExitDatabase = 3, kExitFailedSims = 4, kExitNoMemory = 5;
 
@@ -72,7 +76,7 @@ const char* kUsage =
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
     "         [--model particle_kes|choi_ko] [--allow-no-rest] [--quiet]\n"
-    "         [--bracket] [--self-collision]\n"
+    "         [--bracket] [--self-collision] [--memory-budget-mb M]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
@@ -131,6 +135,18 @@ int integer(const std::string& text, const std::string& what) {
   const double v = number(text, what);
   if (v != std::floor(v) || std::abs(v) > 1e9) throw UsageError(what + ": '" + text + "' is not an integer");
   return static_cast<int>(v);
+}
+
+// A thread count: 1..kMaxRequestableThreads, lowered to maxUsefulThreads() with a note on stderr.
+int threadCount(const std::string& text, const std::string& what) {
+  int n = 0;
+  std::string why;
+  if (!parseThreadCount(text, &n, &why)) throw UsageError(what + ": " + why);
+  if (n > maxUsefulThreads()) {
+    std::cerr << "note: " << what << " " << n << " lowered to " << maxUsefulThreads() << " (twice the hardware threads)\n";
+    n = maxUsefulThreads();
+  }
+  return n;
 }
 
 std::vector<double> numbers(const std::string& text, std::size_t n, const std::string& what) {
@@ -192,7 +208,7 @@ int cmdBuild(const Args& a) {
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--model", "--allow-no-rest", "--quiet", "--bracket",
-               "--self-collision"});
+               "--self-collision", "--memory-budget-mb"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -215,7 +231,10 @@ int cmdBuild(const Args& a) {
     const std::string g = a.get("--grid");
     const auto x = g.find('x');
     if (x == std::string::npos) throw UsageError("--grid: expected NXxNY, e.g. 6x6");
-    c.hold_points = fundamentalDomainGrid(c.textile, sym, integer(g.substr(0, x), "--grid"), integer(g.substr(x + 1), "--grid"));
+    const int nx = integer(g.substr(0, x), "--grid"), ny = integer(g.substr(x + 1), "--grid");
+    if (nx < 1 || ny < 1 || nx > kMaxGridSide || ny > kMaxGridSide)
+      throw UsageError("--grid: each side must be 1.." + std::to_string(kMaxGridSide));
+    c.hold_points = fundamentalDomainGrid(c.textile, sym, nx, ny);
   }
   for (const std::string& h : a.all("--hold")) {
     const auto v = numbers(h, 2, "--hold");
@@ -225,8 +244,13 @@ int cmdBuild(const Args& a) {
   c.bracket_hold_points = a.has("--bracket");
   c.retry_failed = a.has("--retry-failed");
   c.progress = !a.has("--quiet");
-  if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
-  if (a.has("--sim-threads")) c.threads_per_simulation = integer(a.get("--sim-threads"), "--sim-threads");
+  if (a.has("--threads")) c.workers = threadCount(a.get("--threads"), "--threads");
+  if (a.has("--sim-threads")) c.threads_per_simulation = threadCount(a.get("--sim-threads"), "--sim-threads");
+  if (a.has("--memory-budget-mb")) {
+    const double mb = number(a.get("--memory-budget-mb"), "--memory-budget-mb");
+    if (!(mb > 0 && mb <= 1e12)) throw UsageError("--memory-budget-mb must be a positive number of MiB");
+    c.settings.memory_budget_bytes = static_cast<std::size_t>(mb * 1024 * 1024);
+  }
   if (a.has("--views")) {
     c.views.count = integer(a.get("--views"), "--views");
     if (c.views.count < 1) throw UsageError("--views must be >= 1");
@@ -520,7 +544,7 @@ int cmdBench(const Args& a) {
   c.out_dir = a.require("--out");
   c.quick = a.has("--quick");
   c.resume = a.has("--resume");
-  if (a.has("--threads")) c.workers = integer(a.get("--threads"), "--threads");
+  if (a.has("--threads")) c.workers = threadCount(a.get("--threads"), "--threads");
   if (a.has("--pairs")) c.pairs_per_shape = integer(a.get("--pairs"), "--pairs");
   if (c.pairs_per_shape < 1) throw UsageError("--pairs must be >= 1");
   if (a.has("--seed")) c.seed = static_cast<std::uint64_t>(integer(a.get("--seed"), "--seed"));
