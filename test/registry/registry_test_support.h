@@ -1,11 +1,13 @@
 // Shared by the registry suites: temporary database paths, small fast build options, a test textile.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <string>
 
+#include "textile_handling/db/database_errors.h"
 #include "textile_handling/registry/textile_registry.h"
 
 namespace textile_handling {
@@ -43,6 +45,19 @@ inline TextileRegistration napkin(const std::string& name = "napkin") {
                     {"middle", "grasp", Vec2(0.15, 0.15)}};
   r.material_name = "cotton";
   return r;
+}
+
+/// Registers `r` and expects a refusal (db::InvalidInputError) whose message contains `needle`.
+inline void expectRefused(TextileRegistry& reg, const TextileRegistration& r, const std::string& needle,
+                          const std::string& what) {
+  try {
+    reg.registerTextile(r);
+    ADD_FAILURE() << what << ": accepted";
+  } catch (const db::InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << what << ": '" << e.what() << "'";
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << what << ": wrong exception type: " << e.what();
+  }
 }
 
 }  // namespace test_support

@@ -23,6 +23,7 @@ namespace textile_handling {
 namespace registry {
 namespace {
 
+using test_support::expectRefused;
 using test_support::smallOptions;
 using test_support::tempDb;
 
@@ -41,18 +42,6 @@ std::vector<Vec2> circle(int n) {
     out.emplace_back(0.3 + 0.3 * std::cos(a), 0.3 + 0.3 * std::sin(a));
   }
   return out;
-}
-
-// Registers r and expects a refusal whose message contains `needle`.
-void expectRefused(TextileRegistry& reg, const TextileRegistration& r, const std::string& needle, const std::string& what) {
-  try {
-    reg.registerTextile(r);
-    ADD_FAILURE() << what << ": accepted";
-  } catch (const db::InvalidInputError& e) {
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << what << ": '" << e.what() << "'";
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << what << ": wrong exception type: " << e.what();
-  }
 }
 
 }  // namespace

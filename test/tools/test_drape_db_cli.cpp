@@ -4,60 +4,28 @@
 // here instead of exhausting the machine.
 #include <gtest/gtest.h>
 
-#include <fcntl.h>
-#include <sys/resource.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <string>
 #include <vector>
 
 #include <opencv2/imgcodecs.hpp>
 
 #include "../recognition/recognition_test_support.h"
+#include "tool_process.h"
 #include "textile_handling/db/drape_database_builder.h"
 
 using namespace textile_handling;
 
 namespace {
 
-struct ProcessRun {
-  int status = -1;  // exit status, or 128 + signal
-  std::string out, err;
-};
+using tool_process::ToolRun;
 
-std::string readAll(const std::string& path) {
-  std::ifstream in(path);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-ProcessRun runDrapeDb(const std::vector<std::string>& args, const std::string& dir) {
-  const std::string out = dir + "/stdout.txt", err = dir + "/stderr.txt";
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const rlimit as{std::uint64_t{4} << 30, std::uint64_t{4} << 30};
-    ::setrlimit(RLIMIT_AS, &as);
-    ::alarm(120);
-    const int fo = ::open(out.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int fe = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(fo, 1);
-    ::dup2(fe, 2);
-    std::vector<char*> argv{const_cast<char*>(DRAPE_DB_EXE)};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::setenv("OMP_WAIT_POLICY", "passive", 1);
-    ::execv(DRAPE_DB_EXE, argv.data());
-    ::_exit(127);
-  }
-  ProcessRun r;
-  int st = 0;
-  ::waitpid(pid, &st, 0);
-  r.status = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-  r.out = readAll(out);
-  r.err = readAll(err);
+ToolRun runDrapeDb(const std::vector<std::string>& args) {
+  const ToolRun r = tool_process::runTool(DRAPE_DB_EXE, args);
+  EXPECT_FALSE(r.timed_out) << "drape_db did not finish within 120 s";
   return r;
 }
 
@@ -86,13 +54,13 @@ class DrapeDbCli : public ::testing::Test {
   }
   static void TearDownTestSuite() { std::filesystem::remove_all(dir_); }
 
-  static ProcessRun query(std::vector<std::string> extra) {
+  static ToolRun query(std::vector<std::string> extra) {
     std::vector<std::string> args{"query", "--db", db_};
     args.insert(args.end(), extra.begin(), extra.end());
-    return runDrapeDb(args, dir_);
+    return runDrapeDb(args);
   }
-  static void expectRefused(const ProcessRun& r, const std::string& names) {
-    EXPECT_EQ(r.status, 2) << r.err;
+  static void expectRefused(const ToolRun& r, const std::string& names) {
+    EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find(names), std::string::npos) << "the message does not name " << names << ": " << r.err;
   }
 
@@ -101,8 +69,8 @@ class DrapeDbCli : public ::testing::Test {
 std::string DrapeDbCli::dir_, DrapeDbCli::db_, DrapeDbCli::mask_;
 
 TEST_F(DrapeDbCli, AnIntactQuerySucceeds) {
-  const ProcessRun r = query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
-  EXPECT_EQ(r.status, 0) << r.err;
+  const ToolRun r = query({"--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.out.find("rank"), std::string::npos) << r.out;
 }
 
@@ -129,7 +97,7 @@ TEST_F(DrapeDbCli, HugeImagesAreRefusedFromTheirHeader) {
     f.write(reinterpret_cast<const char*>(head), sizeof head);
   }
   for (const char* option : {"--image", "--mask"}) {
-    const ProcessRun r = query({option, png, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
+    const ToolRun r = query({option, png, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
     expectRefused(r, option);
     EXPECT_NE(r.err.find("20000 x 20000"), std::string::npos) << "not refused for its size: " << r.err;
   }
@@ -145,7 +113,7 @@ TEST_F(DrapeDbCli, HugeYamlIsRefusedBeforeParsing) {
     f << "values:\n";
     for (int k = 0; k < 1'500'000; ++k) f << "  - " << k << "\n";  // about 12 MB of list
   }
-  const ProcessRun r = runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "towel", "--material", yaml}, dir_);
+  const ToolRun r = runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "towel", "--material", yaml});
   expectRefused(r, "--material");
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/never.sqlite"));
 }
@@ -156,9 +124,8 @@ TEST_F(DrapeDbCli, ADamagedStoredViewIsSkippedAndReported) {
   const auto ids = test_support::storedViewIds(copy);
   ASSERT_FALSE(ids.empty());
   ASSERT_EQ(test_support::flipStoredMaskBytes(copy, {ids.front()}), 1);
-  const ProcessRun r = runDrapeDb({"query", "--db", copy, "--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"},
-                           dir_);
-  EXPECT_EQ(r.status, 0) << r.err;
+  const ToolRun r = runDrapeDb({"query", "--db", copy, "--mask", mask_, "--hold-pixel", "32,4", "--metres-per-pixel", "0.01"});
+  EXPECT_EQ(r.exit_code, 0) << r.err;
   EXPECT_NE(r.err.find("damaged view " + std::to_string(ids.front())), std::string::npos) << r.err;
   EXPECT_NE(r.out.find(std::to_string(ids.size() - 1) + " silhouettes"), std::string::npos) << r.out;
 }

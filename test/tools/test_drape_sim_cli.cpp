@@ -18,60 +18,20 @@
 #include <thread>
 #include <vector>
 
+#include "tool_process.h"
+
 namespace {
 
 const std::string kDrapeSim = DRAPE_SIM_EXECUTABLE;
 const std::string kSourceDir = TEXTILE_HANDLING_SOURCE_DIR;
 
-struct Outcome {
-  int exit_code = -1;  // -1: killed by a signal or by the time limit
-  std::string out, err;
-};
-
-std::string readAll(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using textile_handling::tool_process::ToolRun;
+using Outcome = ToolRun;
 
 // Runs drape_sim with `args` (umask 000, 4 GiB of address space, at most 120 s).
 Outcome runDrapeSim(const std::vector<std::string>& args) {
-  const std::string base = ::testing::TempDir() + "/th_cli_" + std::to_string(::getpid());
-  const std::string out_path = base + ".out", err_path = base + ".err";
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const rlimit limit{std::size_t{4} << 30, std::size_t{4} << 30};
-    ::setrlimit(RLIMIT_AS, &limit);
-    ::umask(0);
-    const int out = ::open(out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    const int err = ::open(err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    ::dup2(out, 1);
-    ::dup2(err, 2);
-    ::setenv("OMP_WAIT_POLICY", "passive", 1);
-    std::vector<char*> argv{const_cast<char*>(kDrapeSim.c_str())};
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(kDrapeSim.c_str(), argv.data());
-    ::_exit(127);
-  }
-  Outcome o;
-  int status = 0;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
-  while (::waitpid(pid, &status, WNOHANG) == 0) {
-    if (std::chrono::steady_clock::now() > deadline) {
-      ::kill(pid, SIGKILL);
-      ::waitpid(pid, &status, 0);
-      ADD_FAILURE() << "drape_sim did not finish within 120 s";
-      break;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  if (WIFEXITED(status)) o.exit_code = WEXITSTATUS(status);
-  o.out = readAll(out_path);
-  o.err = readAll(err_path);
-  std::remove(out_path.c_str());
-  std::remove(err_path.c_str());
+  const Outcome o = textile_handling::tool_process::runTool(kDrapeSim, args);
+  EXPECT_FALSE(o.timed_out) << "drape_sim did not finish within 120 s";
   return o;
 }
 
