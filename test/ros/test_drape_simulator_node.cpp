@@ -6,6 +6,7 @@
 #include <visualization_msgs/MarkerArray.h>
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <mutex>
 
@@ -120,14 +121,17 @@ textile_handling::RegisterTextile napkinRequest(const std::string& name) {
   return srv;
 }
 
-// Polls list_textiles until `name` has `done` finished simulations and nothing pending, or times out.
-bool waitForBuild(const std::string& name, int done, double timeout_s, textile_handling::TextileInfo* info) {
+// Polls list_textiles until `name` has `done` finished simulations and nothing pending in an active
+// generation >= `generation` with no resimulation in progress, or times out.
+bool waitForBuild(const std::string& name, int done, double timeout_s, textile_handling::TextileInfo* info,
+                  std::int64_t generation = 0) {
   const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout_s);
   while (ros::WallTime::now() < end) {
     textile_handling::ListTextiles list;
     if (callService("list_textiles", list))
       for (const auto& t : list.response.textiles)
-        if (t.name == name && t.simulations_done == done && t.simulations_pending == 0) {
+        if (t.name == name && t.simulations_done == done && t.simulations_pending == 0 && t.generation >= generation &&
+            t.staged_simulations == 0) {
           *info = t;
           return true;
         }
@@ -203,8 +207,11 @@ TEST(DrapeSimulatorNode, RegisterResimulateListOnATemporaryDatabase) {
   ASSERT_TRUE(callService("resimulate", resim));
   ASSERT_TRUE(resim.response.success) << resim.response.message;
   EXPECT_EQ(resim.response.queued_simulations, 9);
-  ros::WallDuration(1.0).sleep();
-  ASSERT_TRUE(waitForBuild("napkin", 9, 90.0, &info));
+  // The old entries stay active (9 done) while the new ones are built beside them; the promotion
+  // makes the next generation active.
+  const std::int64_t old_generation = info.generation;
+  ASSERT_TRUE(waitForBuild("napkin", 9, 90.0, &info, old_generation + 1));
+  EXPECT_EQ(info.generation, old_generation + 1);
   ASSERT_TRUE(callService("publish_rest_shape", shape));
   EXPECT_TRUE(shape.response.success) << shape.response.message;
   ros::WallDuration(1.0).sleep();
