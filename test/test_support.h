@@ -1,5 +1,5 @@
-// Helpers shared by the gtest suites (header-only, no ROS): an OpenMP thread-count scope and a
-// temporary SQLite path that cleans up after itself.
+// Helpers shared by the gtest suites (header-only, no ROS): an OpenMP thread-count scope and
+// temporary paths (files, SQLite databases, directories).
 #pragma once
 
 #include <unistd.h>
@@ -60,6 +60,22 @@ class TempDatabase {
   }
   std::string path_;
 };
+
+/// A path <temp>/<prefix><pid>_<name>, unique per process; a leftover file there and its WAL and
+/// shared-memory files are removed first.
+inline std::string freshTempPath(const std::string& prefix, const std::string& name) {
+  const auto p = std::filesystem::temp_directory_path() / (prefix + std::to_string(::getpid()) + "_" + name);
+  for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p.string() + s);
+  return p.string();
+}
+
+/// A new empty directory <temp>/<prefix>_<pid> (removed first if it exists).
+inline std::string freshTempDir(const std::string& prefix) {
+  const std::string dir = (std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()))).string();
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
 
 }  // namespace test_support
 }  // namespace textile_handling

@@ -17,8 +17,10 @@
 #include <tuple>
 #include <utility>
 
+#include "database_sql.h"
 #include "textile_handling/sim/memory_budget.h"
 #include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/timing.h"
 
 namespace textile_handling {
 namespace db {
@@ -26,14 +28,6 @@ namespace db {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
-std::string fmt(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
 
 std::string clockText(double s) {
   if (!std::isfinite(s) || s < 0) return "--:--";
@@ -175,7 +169,7 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   for (const auto& [name, value] : numericSettings(c)) {
     // Projection details only matter for the pinhole projection.
     if (c.projection.type == vision::ProjectionType::kOrthographic && name.rfind("projection.", 0) == 0) continue;
-    t += name + ": " + fmt(value) + "\n";
+    t += name + ": " + internal::fmt17(value) + "\n";
   }
   // Only when on, so that the parameter texts of builds without collision stay as they were.
   if (c.self_collision) t += "self_collision: v3\n";
@@ -298,7 +292,7 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
   const std::vector<Vec2> full = fullOutline(c.textile);
   for (const Vec2& p : c.hold_points)
     if (!p.allFinite() || !pointInPolygon(full, p, 1e-9))
-      throw InvalidInputError("build: hold point (" + fmt(p.x()) + ", " + fmt(p.y()) + ") is not on the textile");
+      throw InvalidInputError("build: hold point (" + internal::fmt17(p.x()) + ", " + internal::fmt17(p.y()) + ") is not on the textile");
 
   symmetry_ = c.use_symmetry ? detectSymmetry(c.textile) : TextileSymmetry{};
   std::vector<Vec2> canonical;
@@ -545,11 +539,11 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
               wall += r.wall_time;
               std::string why;
               if (r.diverged)
-                why = "diverged at t = " + fmt(r.divergence_time) + " s: " + r.divergence_reason;
+                why = "diverged at t = " + internal::fmt17(r.divergence_time) + " s: " + r.divergence_reason;
               else if (!r.rest_reached && c.require_rest)
-                why = "no rest within max_time " + fmt(spec.settings.max_time) + " s";
+                why = "no rest within max_time " + internal::fmt17(spec.settings.max_time) + " s";
               if (!why.empty()) {
-                failure += (failure.empty() ? "" : "; retry with dt_max " + fmt(spec.settings.dt_max) + " s: ") + why;
+                failure += (failure.empty() ? "" : "; retry with dt_max " + internal::fmt17(spec.settings.dt_max) + " s: ") + why;
                 continue;
               }
               failure.clear();

@@ -8,6 +8,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "textile_handling/sim/timing.h"
 #include "textile_handling/vision/mask_cv.h"
 
 namespace textile_handling {
@@ -212,7 +213,7 @@ std::pair<MatchEvaluation, MatchEvaluation> evaluatePairs(const DrapeMatchIndex&
       }
       const auto t0 = Clock::now();
       const DrapeQueryResult r = queryDrape(index, *m, o.match);
-      count(index, r, p.truth_class, std::chrono::duration<double, std::milli>(Clock::now() - t0).count(), single);
+      count(index, r, p.truth_class, msSince(t0), single);
     }
     if (p.m1.count() == 0 || p.m2.count() == 0) {
       ++fused.queries;
@@ -226,7 +227,7 @@ std::pair<MatchEvaluation, MatchEvaluation> evaluatePairs(const DrapeMatchIndex&
     imgs[1].relative_view_deg = p.a2 - p.a1;
     const auto t0 = Clock::now();
     const DrapeQueryResult r = queryDrapeFused(index, imgs, o.match);
-    count(index, r, p.truth_class, std::chrono::duration<double, std::milli>(Clock::now() - t0).count(), fused);
+    count(index, r, p.truth_class, msSince(t0), fused);
   }
   return {single, fused};
 }

@@ -8,6 +8,7 @@
 #include <new>
 #include <stdexcept>
 
+#include "node_paths.h"
 #include "textile_handling/BuildProgress.h"
 #include "textile_handling/DatabaseChanged.h"
 #include "textile_handling/db/database_errors.h"
@@ -30,12 +31,6 @@ int positiveIntParam(ros::NodeHandle& nh, const std::string& name, int fallback)
   nh.param(name, v, fallback);
   if (v < 1) throw std::runtime_error("parameter ~" + name + " must be a positive integer");
   return v;
-}
-
-std::string expandHome(const std::string& path) {
-  if (path.rfind("~/", 0) != 0) return path;
-  const char* home = std::getenv("HOME");
-  return std::string(home ? home : ".") + path.substr(1);
 }
 
 }  // namespace

@@ -9,17 +9,13 @@
 #include <cstdlib>
 #include <stdexcept>
 
+#include "node_paths.h"
 #include "textile_handling/RecognitionResult.h"
+#include "textile_handling/sim/timing.h"
 
 namespace textile_handling {
 
 namespace {
-
-std::string expandHome(const std::string& path) {
-  if (path.rfind("~/", 0) != 0) return path;
-  const char* home = std::getenv("HOME");
-  return std::string(home ? home : ".") + path.substr(1);
-}
 
 double finiteParam(ros::NodeHandle& nh, const std::string& name, double fallback, double lo) {
   double v = fallback;
@@ -431,7 +427,7 @@ void TextileRecognizerNode::process(const Frame& f) {
     t.child_frame_id = grasp_frame_prefix_ + g.name;
     frames.push_back(t);
   }
-  out.processing_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  out.processing_ms = msSince(t0);
   tf_broadcaster_.sendTransform(frames);
   result_pub_.publish(out);
   poses_pub_.publish(out.grasp_poses);

@@ -13,6 +13,7 @@
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/recognition/point_cloud_segmentation.h"
 #include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/timing.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 namespace textile_handling {
@@ -31,7 +32,6 @@ struct LoadedIndex {
 };
 
 using Clock = std::chrono::steady_clock;
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 [[noreturn]] void fail(RecognitionErrorCode c, const std::string& what) { throw RecognitionError(c, what); }
 

@@ -15,6 +15,8 @@
 
 #include <Eigen/SVD>
 
+#include "textile_handling/sim/timing.h"
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -27,8 +29,6 @@ using Clock = std::chrono::steady_clock;
 // Below this many work items a loop runs on one thread: the parallel region would cost more than it
 // saves (and far more on an oversubscribed machine).
 constexpr Index kParallelMin = 2048;
-
-double msSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
 inline bool overlapInflated(const geom::Aabb& a, const geom::Aabb& b, Real r) {
   return a.lo.x() - r <= b.hi.x() && b.lo.x() <= a.hi.x() + r && a.lo.y() - r <= b.hi.y() && b.lo.y() <= a.hi.y() + r &&

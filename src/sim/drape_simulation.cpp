@@ -1,6 +1,7 @@
 #include "textile_handling/sim/drape_simulation.h"
 
 #include "textile_handling/sim/output_files.h"
+#include "textile_handling/sim/timing.h"
 
 #include <algorithm>
 #include <chrono>
@@ -155,7 +156,7 @@ bool DrapeSimulation::stepOnce() {
     const Real h = settings_.policy == StepPolicy::kFixed ? settings_.dt : std::min(dt_, settings_.dt_max);
     const auto t0 = Clock::now();
     StepOutcome out = integrator_->step(model_, pins_, x_, v_, t_, h, x_new_, v_new_);
-    result_.step_ms += std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+    result_.step_ms += msSince(t0);
     result_.solver_iterations += out.solver_iterations;
     result_.assembly_ms += out.assembly_ms;
     result_.solve_ms += out.solve_ms;
@@ -217,7 +218,7 @@ bool DrapeSimulation::stepOnce() {
         resetEnergyBudget();
         energy_budget_ = std::max(energy_budget_, budget_before);
       }
-      result_.post_step_ms += std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+      result_.post_step_ms += msSince(t1);
     }
     model_.acceptStep(x_, v_);
     if (settings_.policy == StepPolicy::kThesis) adaptThesis(x_new_, h);
@@ -247,12 +248,12 @@ RunResult DrapeSimulation::run(Real until) {
   while (!result_.rest_reached && !result_.diverged && t_ < stop - 1e-12) {
     if (!stepOnce()) break;
     if (settings_.max_wall_time > 0 &&
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() > settings_.max_wall_time) {
+        secondsSince(start) > settings_.max_wall_time) {
       result_.wall_cap_reached = true;
       break;
     }
   }
-  result_.wall_time += std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result_.wall_time += secondsSince(start);
   result_.sim_time = t_;
   result_.kinetic_energy = kineticEnergy();
   result_.potential_energy = model_.potentialEnergy(x_);

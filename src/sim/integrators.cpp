@@ -9,6 +9,9 @@
 #include <memory>
 #include <stdexcept>
 
+#include "textile_handling/sim/collision.h"
+#include "textile_handling/sim/timing.h"
+
 namespace textile_handling {
 
 std::string toString(IntegratorType t) {
@@ -94,15 +97,6 @@ Real deterministicDot(const VecX& a, const VecX& b) {
 
 namespace {
 
-bool allFinite(const VecX& v) { return v.allFinite(); }
-
-// Marks the DOFs of pinned nodes.
-std::vector<char> pinnedMask(const ClothModel& model, const PinnedNodes& pins) {
-  std::vector<char> mask(model.numNodes(), 0);
-  for (Index p : pins.nodes) mask[p] = 1;
-  return mask;
-}
-
 // Shared by both implicit variants: assembles A = M - h D - h^2 K and rhs = h (f + h K v).
 class ImplicitEulerBase : public Integrator {
  protected:
@@ -116,7 +110,7 @@ class ImplicitEulerBase : public Integrator {
     }
     const ForceReport rep = model.computeForces(x, v, f_, &jac_);
     out->degenerate_terms = rep.degenerate_terms;
-    if (!allFinite(f_)) {
+    if (!f_.allFinite()) {
       out->ok = false;
       out->failure = "non-finite force";
       return false;
@@ -162,12 +156,12 @@ class ImplicitEulerBase : public Integrator {
       x_new.segment<3>(p * b) = pins.position(k, t + h);
     }
     Real worst = 0;
-    const auto mask = pinnedMask(model, pins);
+    const auto mask = pinnedMask(model.numNodes(), pins);
     for (Index i = 0; i < model.numNodes(); ++i)
       if (!mask[i]) worst = std::max(worst, dv.segment<3>(i * b).norm());
     out->error_estimate = 0.5 * h * worst;  // |x_backward - x_forward| / 2
     out->error_order = 2;
-    if (!allFinite(x_new) || !allFinite(v_new)) {
+    if (!x_new.allFinite() || !v_new.allFinite()) {
       out->ok = false;
       out->failure = "non-finite state after step";
     }
@@ -193,7 +187,6 @@ class ImplicitEulerBase : public Integrator {
 };
 
 using Clock = std::chrono::steady_clock;
-Real msSince(Clock::time_point t0) { return std::chrono::duration<Real, std::milli>(Clock::now() - t0).count(); }
 
 // Sparse LDL^T of a BSR matrix. DOFs marked in `dof_pinned` get identity rows and columns, so the
 // scalar pattern (and the fill-reducing ordering, computed once) never changes.
@@ -504,7 +497,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
     const Index n = model.numNodes();
     const int b = model.dofsPerNode();
     const Index dofs = n * b;
-    mask_ = pinnedMask(model, pins);
+    mask_ = pinnedMask(model.numNodes(), pins);
     if (new_model) {
       if (prev_y_.size() != dofs) prev_y_.resize(0);  // keeps a restored solverState() of the right size
       if (solver_.kind == LinearSolverKind::kDirect) direct_.setPattern(model.jacobianPattern());
@@ -688,7 +681,7 @@ class BlockDiagonalEuler : public ImplicitEulerBase {
     if (!assemble(model, x, v, h, &out)) return out;
     const Index n = model.numNodes();
     const int b = model.dofsPerNode();
-    const auto mask = pinnedMask(model, pins);
+    const auto mask = pinnedMask(model.numNodes(), pins);
     VecX dv = VecX::Zero(n * b);
     bool singular = false;
     if (b == 3) {
@@ -776,7 +769,7 @@ class RungeKutta4 : public Integrator {
                         h * (v_new.segment<3>(i * b) - v_mid.segment<3>(i * b)).norm()});
     out.error_estimate = worst;
     out.error_order = 3;
-    if (!allFinite(x_new) || !allFinite(v_new)) {
+    if (!x_new.allFinite() || !v_new.allFinite()) {
       out.ok = false;
       out.failure = "non-finite state after step";
     }

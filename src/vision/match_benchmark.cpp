@@ -9,6 +9,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "textile_handling/sim/timing.h"
+
 namespace textile_handling {
 namespace vision {
 
@@ -248,7 +250,7 @@ MatchBenchmarkReport runMatchBenchmark(const MatchBenchmarkConfig& cfg) {
       truth.push_back(g.textile + "/" + g.hold);
     }
   }
-  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double build_s = secondsSince(t0);
   MatchBenchmarkReport r = benchmarkQueries(matcher, queries, cfg.options, truth, cfg.verify_queries);
   r.database = name;
   r.build_seconds = build_s;

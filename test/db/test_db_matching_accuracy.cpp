@@ -13,6 +13,7 @@
 #include <random>
 #include <string>
 
+#include "../test_support.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
@@ -23,11 +24,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-std::string tempPath(const std::string& name) {
-  const auto p = std::filesystem::temp_directory_path() / ("th_db_acc_" + std::to_string(::getpid()) + "_" + name);
-  for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p.string() + s);
-  return p.string();
-}
+std::string tempPath(const std::string& name) { return test_support::freshTempPath("th_db_acc_", name); }
 
 MaterialCurve scaled(const MaterialCurve& c, double k) {
   std::vector<std::vector<Real>> coef = c.coefficients();

@@ -13,6 +13,7 @@
 
 #include <Eigen/Geometry>
 
+#include "../test_support.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/sqlite_wrapper.h"
 #include "textile_handling/recognition/recognition_errors.h"
@@ -43,14 +44,6 @@ inline vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
   vision::CameraPose pose = vision::CameraPose::lookAt(eye, hold + Vec3(0, 0, -0.2));
   pose.rotation = pose.rotation * Eigen::AngleAxisd(4.0 * kPi / 180.0, Vec3::UnitZ()).toRotationMatrix();
   return pose;
-}
-
-/// A new empty directory <temp>/<prefix>_<pid> (removed first if it exists).
-inline std::string freshTempDir(const std::string& prefix) {
-  const std::string dir = (std::filesystem::temp_directory_path() / (prefix + "_" + std::to_string(::getpid()))).string();
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
 }
 
 /// True if `f` throws a RecognitionError with `code` (its message in *msg); false if it throws

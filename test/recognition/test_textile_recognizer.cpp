@@ -38,11 +38,7 @@ using textile_handling::test_support::vga;
 
 namespace {
 
-std::string tempPath(const std::string& name) {
-  const auto p = std::filesystem::temp_directory_path() / ("th_rec_" + std::to_string(::getpid()) + "_" + name);
-  for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p.string() + s);
-  return p.string();
-}
+std::string tempPath(const std::string& name) { return test_support::freshTempPath("th_rec_", name); }
 
 void removeDb(const std::string& p) {
   for (const char* s : {"", "-wal", "-shm"}) std::filesystem::remove(p + s);

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <string>
 
+#include "../test_support.h"
 #include "textile_handling/db/database_errors.h"
 #include "textile_handling/registry/textile_registry.h"
 
@@ -16,11 +17,7 @@ namespace test_support {
 
 /// A database path in a fresh temporary directory unique to the process and `tag`.
 inline std::string tempDb(const std::string& tag) {
-  const std::string dir = std::filesystem::temp_directory_path().string() + "/th_registry_" + tag + "_" +
-                          std::to_string(::getpid());
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir + "/drapes.sqlite";
+  return textile_handling::test_support::freshTempDir("th_registry_" + tag) + "/drapes.sqlite";
 }
 
 /// Small, fast builds: coarse particle grid (d = 5 cm), 4 views, lattice 15 cm, one worker.
