@@ -199,7 +199,9 @@ TEST(ResimulationCrashSafety, KillsAtAnyMomentLeaveTheOldOrTheNewCompleteSet) {
     }));
     EXPECT_EQ(resumed, staged_left ? 1 : 0) << when;
     const Active after = checkOneCompleteSet(work, id, when + ", resumed");
-    if (staged_left || a == Active::kNew) EXPECT_EQ(after, Active::kNew) << when << ", resumed";
+    if (staged_left || a == Active::kNew) {
+      EXPECT_EQ(after, Active::kNew) << when << ", resumed";
+    }
   }
   EXPECT_GT(saw_old, 0);
   removeDb(work);
