@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/vision/mask_cv.h"
 
 namespace textile_handling {

@@ -10,6 +10,8 @@
 
 #include <Eigen/Geometry>
 
+#include "textile_handling/sim/energy_kernels.h"
+
 namespace textile_handling {
 
 using choi_ko::PairTermResult;

@@ -5,7 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 
 namespace textile_handling {
 namespace vision {

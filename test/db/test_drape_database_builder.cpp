@@ -14,7 +14,7 @@
 #include "../test_support.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_match_index.h"
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 
 using namespace textile_handling;
 using namespace textile_handling::db;

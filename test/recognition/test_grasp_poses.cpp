@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "textile_handling/recognition/grasp_poses.h"
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/vision/shaded_renderer.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 

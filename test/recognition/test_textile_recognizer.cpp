@@ -26,7 +26,7 @@
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/recognition/point_cloud_segmentation.h"
 #include "textile_handling/recognition/textile_recognizer.h"
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 using namespace textile_handling;

@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/vision/mask_cv.h"
 #include "textile_handling/vision/match_benchmark.h"

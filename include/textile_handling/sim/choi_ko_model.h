@@ -24,8 +24,8 @@
 
 #include "textile_handling/sim/choi_ko_kernels.h"
 #include "textile_handling/sim/cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/sim/material.h"
-#include "textile_handling/sim/particle_cloth_model.h"
 
 namespace textile_handling {
 

@@ -26,7 +26,7 @@
 
 #include "textile_handling/sim/collision_geometry.h"
 #include "textile_handling/sim/drape_simulation.h"
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 
 namespace textile_handling {
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/cloth_topology.h"
 
 namespace textile_handling {
 
