@@ -257,12 +257,7 @@ namespace {
 void checkBuildMemory(const DrapeBuildConfig& c, Index nodes, int simulations) {
   const int hw = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   const int at_once = std::max(1, std::min(c.workers > 0 ? c.workers : hw, simulations));
-  SimulationMemoryInput in;
-  in.nodes = nodes;
-  in.integrator = c.settings.integrator;
-  in.solver = c.settings.solver.kind;
-  in.self_collision = c.self_collision;
-  checkMemoryBudget(estimateSimulationBytes(in), c.settings.memory_budget_bytes,
+  checkMemoryBudget(estimateSimulationBytes(memoryInput(nodes, c.settings, c.self_collision)), c.settings.memory_budget_bytes,
                     "the database build of '" + c.textile.name + "' (" + std::to_string(nodes) + " particles per simulation)",
                     static_cast<std::size_t>(at_once));
 }

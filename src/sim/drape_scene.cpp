@@ -51,11 +51,7 @@ void checkHoldPointsOnTextile(const DrapeSceneSpec& spec, const std::vector<Vec2
 
 // The scene's memory estimate against its budget, before the model and the solver allocate.
 void checkSceneMemory(const DrapeSceneSpec& spec, Index nodes) {
-  SimulationMemoryInput in;
-  in.nodes = nodes;
-  in.integrator = spec.settings.integrator;
-  in.solver = spec.settings.solver.kind;
-  in.self_collision = spec.self_collision;
+  const SimulationMemoryInput in = memoryInput(nodes, spec.settings, spec.self_collision);
   const std::string what = "the scene (textile '" + spec.textile.name + "', " + std::to_string(nodes) +
                            " particles at spacing " + std::to_string(spec.spacing) + " m)";
   checkMemoryBudget(estimateSimulationBytes(in), spec.settings.memory_budget_bytes, what);

@@ -20,6 +20,17 @@ struct SimulationMemoryInput {
   bool self_collision = false;
 };
 
+/// The memory input of `nodes` particles simulated with `settings` (integrator, linear solver), with or
+/// without self-collision.
+inline SimulationMemoryInput memoryInput(Index nodes, const SimulationSettings& settings, bool self_collision) {
+  SimulationMemoryInput in;
+  in.nodes = nodes;
+  in.integrator = settings.integrator;
+  in.solver = settings.solver.kind;
+  in.self_collision = self_collision;
+  return in;
+}
+
 /// Conservative estimate [bytes] of the peak memory of one simulation (scene, model, integrator,
 /// solver, collision passes and the outputs drape_sim writes), from measured peak resident sizes.
 /// Stored trajectory frames (simulation.trajectory_every) come on top: 24 bytes per node and frame.
