@@ -25,25 +25,69 @@ double finiteParam(ros::NodeHandle& nh, const std::string& name, double fallback
   return v;
 }
 
-recognition::BackgroundModel backgroundFromString(const std::string& s) {
-  if (s == "uniform_colour") return recognition::BackgroundModel::kUniformColour;
-  if (s == "border_median") return recognition::BackgroundModel::kBorderMedian;
-  throw std::runtime_error("parameter ~segmentation/background must be uniform_colour or border_median");
+// A segmentation enum parameter parsed by the core's parser (segmentation.h); a bad value names the parameter.
+template <typename Parse>
+auto enumParam(const std::string& name, const std::string& value, Parse parse) {
+  try {
+    return parse(value);
+  } catch (const recognition::RecognitionError& e) {
+    throw std::runtime_error("parameter ~" + name + ": " + e.what());
+  }
 }
 
-recognition::ColourSpace colourSpaceFromString(const std::string& s) {
-  if (s == "bgr") return recognition::ColourSpace::kBgr;
-  if (s == "lab") return recognition::ColourSpace::kLab;
-  if (s == "ab") return recognition::ColourSpace::kAb;
-  throw std::runtime_error("parameter ~segmentation/colour_space must be bgr, lab or ab");
-}
-
-recognition::DepthMode depthModeFromString(const std::string& s) {
-  if (s == "colour_only") return recognition::DepthMode::kColourOnly;
-  if (s == "gate") return recognition::DepthMode::kGate;
-  if (s == "intersect") return recognition::DepthMode::kIntersect;
-  if (s == "depth_only") return recognition::DepthMode::kDepthOnly;
-  throw std::runtime_error("parameter ~segmentation/depth_mode must be colour_only, gate, intersect or depth_only");
+// The result message (grasp poses in the gripper frame, `header`'s frame) and the grasp frames for tf,
+// from a core result; images_fused and processing_ms are left to the caller.
+RecognitionResult resultMessage(const recognition::RecognitionResult& res, const std_msgs::Header& header,
+                                const Eigen::Isometry3d& gripper_camera, const std::string& grasp_frame_prefix,
+                                std::vector<geometry_msgs::TransformStamped>* frames) {
+  RecognitionResult out;
+  out.header = header;
+  out.success = true;
+  out.textile_id = res.textile_id;
+  out.textile_name = res.textile_name;
+  out.hold_x = res.hold_point.x();
+  out.hold_y = res.hold_point.y();
+  out.lattice_i = res.lattice_i;
+  out.lattice_j = res.lattice_j;
+  for (const Vec2& e : res.equivalent_hold_points) {
+    out.equivalent_hold_x.push_back(e.x());
+    out.equivalent_hold_y.push_back(e.y());
+  }
+  out.view_angle_deg = res.view_angle_deg;
+  out.score = res.score;
+  out.coverage = res.coverage;
+  out.skipped_views = static_cast<int>(res.skipped_views);
+  out.warnings = res.warnings;
+  out.confidence = res.confidence;
+  out.front_back_ambiguous = res.front_back_ambiguous;
+  out.depth_used = res.depth_used;
+  for (const auto& c : res.top_k) {
+    RecognitionCandidate rc;
+    rc.textile_id = c.textile_id;
+    rc.textile_name = c.textile_name;
+    rc.hold_x = c.hold_point.x();
+    rc.hold_y = c.hold_point.y();
+    rc.lattice_i = c.lattice_i;
+    rc.lattice_j = c.lattice_j;
+    rc.view_angle_deg = c.view_angle_deg;
+    rc.score = c.score;
+    out.top_k.push_back(rc);
+  }
+  out.grasp_poses.header = out.header;
+  for (const auto& g : res.grasp_poses) {
+    Eigen::Isometry3d pose_camera = Eigen::Isometry3d::Identity();
+    pose_camera.linear() = g.rotation_camera;
+    pose_camera.translation() = g.position_camera;
+    const Eigen::Isometry3d pose_gripper = gripper_camera * pose_camera;
+    out.grasp_names.push_back(g.name);
+    out.grasp_kinds.push_back(g.kind);
+    out.grasp_poses.poses.push_back(tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix())));
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose_gripper);
+    t.header = out.header;
+    t.child_frame_id = grasp_frame_prefix + g.name;
+    frames->push_back(t);
+  }
+  return out;
 }
 
 constexpr std::size_t kInfoHistory = 16;  // camera_info messages kept for pairing with images by stamp
@@ -78,9 +122,12 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   pnh.param<std::string>("segmentation/background", bg, bg);
   pnh.param<std::string>("segmentation/colour_space", cs, cs);
   pnh.param<std::string>("segmentation/depth_mode", dm, dm);
-  o.segmentation.background = backgroundFromString(bg);
-  o.segmentation.colour_space = colourSpaceFromString(cs);
-  o.segmentation.depth_mode = depthModeFromString(dm);
+  o.segmentation.background = enumParam("segmentation/background", bg, recognition::backgroundModelFromString);
+  // The node has no picture of the empty scene to give the background-image model.
+  if (o.segmentation.background == recognition::BackgroundModel::kBackgroundImage)
+    throw std::runtime_error("parameter ~segmentation/background must be uniform_colour or border_median");
+  o.segmentation.colour_space = enumParam("segmentation/colour_space", cs, recognition::colourSpaceFromString);
+  o.segmentation.depth_mode = enumParam("segmentation/depth_mode", dm, recognition::depthModeFromString);
   std::vector<int> bgr;
   if (pnh.getParam("segmentation/background_bgr", bgr)) {
     if (bgr.size() != 3) throw std::runtime_error("parameter ~segmentation/background_bgr must have 3 entries");
@@ -377,56 +424,12 @@ void TextileRecognizerNode::process(const Frame& f) {
   if (history_.size() > 16) history_.pop_front();
   // Poses: camera frame -> gripper frame.
   const Eigen::Isometry3d gripper_camera = camera_gripper.inverse();
-  RecognitionResult out;
-  out.header.stamp = h.stamp;
-  out.header.frame_id = gripper_frame_;
-  out.success = true;
-  out.textile_id = res.textile_id;
-  out.textile_name = res.textile_name;
-  out.hold_x = res.hold_point.x();
-  out.hold_y = res.hold_point.y();
-  out.lattice_i = res.lattice_i;
-  out.lattice_j = res.lattice_j;
-  for (const Vec2& e : res.equivalent_hold_points) {
-    out.equivalent_hold_x.push_back(e.x());
-    out.equivalent_hold_y.push_back(e.y());
-  }
-  out.view_angle_deg = res.view_angle_deg;
-  out.score = res.score;
-  out.coverage = res.coverage;
-  out.skipped_views = static_cast<int>(res.skipped_views);
-  out.warnings = res.warnings;
-  out.confidence = res.confidence;
-  out.front_back_ambiguous = res.front_back_ambiguous;
-  out.depth_used = res.depth_used;
-  out.images_fused = static_cast<int>(images.size());
-  for (const auto& c : res.top_k) {
-    RecognitionCandidate rc;
-    rc.textile_id = c.textile_id;
-    rc.textile_name = c.textile_name;
-    rc.hold_x = c.hold_point.x();
-    rc.hold_y = c.hold_point.y();
-    rc.lattice_i = c.lattice_i;
-    rc.lattice_j = c.lattice_j;
-    rc.view_angle_deg = c.view_angle_deg;
-    rc.score = c.score;
-    out.top_k.push_back(rc);
-  }
-  out.grasp_poses.header = out.header;
+  std_msgs::Header out_header;
+  out_header.stamp = h.stamp;
+  out_header.frame_id = gripper_frame_;
   std::vector<geometry_msgs::TransformStamped> frames;
-  for (const auto& g : res.grasp_poses) {
-    Eigen::Isometry3d pose_camera = Eigen::Isometry3d::Identity();
-    pose_camera.linear() = g.rotation_camera;
-    pose_camera.translation() = g.position_camera;
-    const Eigen::Isometry3d pose_gripper = gripper_camera * pose_camera;
-    out.grasp_names.push_back(g.name);
-    out.grasp_kinds.push_back(g.kind);
-    out.grasp_poses.poses.push_back(tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix())));
-    geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose_gripper);
-    t.header = out.header;
-    t.child_frame_id = grasp_frame_prefix_ + g.name;
-    frames.push_back(t);
-  }
+  RecognitionResult out = resultMessage(res, out_header, gripper_camera, grasp_frame_prefix_, &frames);
+  out.images_fused = static_cast<int>(images.size());
   out.processing_ms = msSince(t0);
   tf_broadcaster_.sendTransform(frames);
   result_pub_.publish(out);

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "textile_handling/recognition/recognition_errors.h"
+
 namespace textile_handling {
 namespace recognition {
 
@@ -63,11 +65,12 @@ OutlineInfo classify(const std::vector<Vec2>& ccw, const Vec2& p, double tol) {
 }  // namespace
 
 RestShapeSample sampleRestShape(const ParticleGrid& grid, const VecX& x, const Vec2& p) {
-  if (grid.empty() || grid.numActive() == 0) throw std::invalid_argument("sampleRestShape: empty grid");
+  if (grid.empty() || grid.numActive() == 0) throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "sampleRestShape: grid is empty");
   if (x.size() != 3 * static_cast<Eigen::Index>(grid.numActive()))
-    throw std::invalid_argument("sampleRestShape: " + std::to_string(x.size() / 3) + " positions for a grid of " +
-                                std::to_string(grid.numActive()) + " particles");
-  if (!p.allFinite()) throw std::invalid_argument("sampleRestShape: point is not finite");
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "sampleRestShape: x has " + std::to_string(x.size() / 3) +
+                                                                    " positions for a grid of " +
+                                                                    std::to_string(grid.numActive()) + " particles");
+  if (!p.allFinite()) throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "sampleRestShape: point p is not finite");
   const double d = grid.spacing();
   const Vec2 a = (p - grid.origin()) / d;
   RestShapeSample s;
@@ -104,9 +107,10 @@ RestShapeSample sampleRestShape(const ParticleGrid& grid, const VecX& x, const V
 }
 
 VecX placeInHoldFrame(const VecX& x, Index held, double rotation_deg) {
-  if (x.size() == 0 || x.size() % 3 != 0) throw std::invalid_argument("placeInHoldFrame: positions must be 3 per particle");
+  if (x.size() == 0 || x.size() % 3 != 0) 
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "placeInHoldFrame: positions x must be 3 per particle");
   if (held < 0 || 3 * static_cast<Eigen::Index>(held) >= x.size())
-    throw std::invalid_argument("placeInHoldFrame: held particle out of range");
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "placeInHoldFrame: held particle out of range");
   const Mat3 r = rotationZ(rotation_deg);
   const Vec3 h = particle(x, held);
   VecX out(x.size());
@@ -115,9 +119,10 @@ VecX placeInHoldFrame(const VecX& x, Index held, double rotation_deg) {
 }
 
 VecX reflectAcrossView(const VecX& x, Index held, double view_deg) {
-  if (x.size() == 0 || x.size() % 3 != 0) throw std::invalid_argument("reflectAcrossView: positions must be 3 per particle");
+  if (x.size() == 0 || x.size() % 3 != 0) 
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "reflectAcrossView: positions x must be 3 per particle");
   if (held < 0 || 3 * static_cast<Eigen::Index>(held) >= x.size())
-    throw std::invalid_argument("reflectAcrossView: held particle out of range");
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "reflectAcrossView: held particle out of range");
   const double a = view_deg * kPi / 180.0;
   const Vec3 d(-std::sin(a), std::cos(a), 0.0);
   const Vec3 h = particle(x, held);
@@ -133,10 +138,11 @@ std::vector<GraspPose> computeGraspPoses(const TextileOutline& textile, const Pa
                                          Index held, double rotation_deg, const HoldGeometry& geometry,
                                          const GraspPoseOptions& o) {
   if (grid.empty() || x.size() != 3 * static_cast<Eigen::Index>(grid.numActive()))
-    throw std::invalid_argument("computeGraspPoses: positions do not match the particle grid");
-  if (held < 0 || held >= grid.numActive()) throw std::invalid_argument("computeGraspPoses: held particle out of range");
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "computeGraspPoses: positions x do not match the particle grid");
+  if (held < 0 || held >= grid.numActive()) 
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "computeGraspPoses: held particle out of range");
   if (!(o.boundary_tolerance_m >= 0) || !std::isfinite(o.boundary_tolerance_m))
-    throw std::invalid_argument("computeGraspPoses: boundary tolerance must be finite and >= 0");
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "computeGraspPoses: boundary_tolerance_m must be finite and >= 0");
   std::vector<Vec2> ccw = fullOutline(textile);
   if (polygonSignedArea(ccw) < 0) std::reverse(ccw.begin(), ccw.end());
 

@@ -97,6 +97,65 @@ cv::Mat depthToMetres(const cv::Mat& depth) {
   return out;
 }
 
+const char* toString(BackgroundModel model) {
+  switch (model) {
+    case BackgroundModel::kUniformColour: return "uniform_colour";
+    case BackgroundModel::kBorderMedian: return "border_median";
+    case BackgroundModel::kBackgroundImage: return "background_image";
+  }
+  return "unknown";
+}
+
+const char* toString(ColourSpace space) {
+  switch (space) {
+    case ColourSpace::kBgr: return "bgr";
+    case ColourSpace::kLab: return "lab";
+    case ColourSpace::kAb: return "ab";
+  }
+  return "unknown";
+}
+
+const char* toString(DepthMode mode) {
+  switch (mode) {
+    case DepthMode::kColourOnly: return "colour_only";
+    case DepthMode::kGate: return "gate";
+    case DepthMode::kIntersect: return "intersect";
+    case DepthMode::kDepthOnly: return "depth_only";
+  }
+  return "unknown";
+}
+
+namespace {
+
+// The enumerator whose toString() is `name`; kInvalidOptions naming `field` and the accepted names.
+template <typename Enum, std::size_t N>
+Enum enumFromString(const std::string& name, const char* field, const Enum (&values)[N]) {
+  std::string accepted;
+  for (Enum v : values) {
+    if (name == toString(v)) return v;
+    accepted += (accepted.empty() ? "" : ", ") + std::string(toString(v));
+  }
+  optionError(std::string(field) + " '" + name + "' is not one of " + accepted);
+}
+
+}  // namespace
+
+BackgroundModel backgroundModelFromString(const std::string& name) {
+  static const BackgroundModel kAll[] = {BackgroundModel::kUniformColour, BackgroundModel::kBorderMedian,
+                                         BackgroundModel::kBackgroundImage};
+  return enumFromString(name, "background", kAll);
+}
+
+ColourSpace colourSpaceFromString(const std::string& name) {
+  static const ColourSpace kAll[] = {ColourSpace::kBgr, ColourSpace::kLab, ColourSpace::kAb};
+  return enumFromString(name, "colour_space", kAll);
+}
+
+DepthMode depthModeFromString(const std::string& name) {
+  static const DepthMode kAll[] = {DepthMode::kColourOnly, DepthMode::kGate, DepthMode::kIntersect, DepthMode::kDepthOnly};
+  return enumFromString(name, "depth_mode", kAll);
+}
+
 void SegmentationOptions::validate() const {
   if (!finiteNonNeg(threshold)) optionError("threshold must be finite and >= 0");
   if (open_radius_px < 0 || close_radius_px < 0 || gate_dilation_px < 0 || border_px < 1)

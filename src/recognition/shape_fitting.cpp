@@ -11,6 +11,7 @@
 #include <Eigen/SparseCore>
 #include <opencv2/imgproc.hpp>
 
+#include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 namespace textile_handling {
@@ -73,24 +74,28 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
                           const std::vector<DepthView>& views, const ShapeFitOptions& o, ShapeFitReport* report) {
   ShapeFitReport rep;
   const Index n = static_cast<Index>(x0.size() / 3);
-  if (x0.size() % 3 != 0 || n == 0) throw std::invalid_argument("fitShapeToDepth: positions must be 3 per vertex");
-  if (fixed_vertex >= n) throw std::invalid_argument("fitShapeToDepth: fixed vertex out of range");
-  if (views.empty()) throw std::invalid_argument("fitShapeToDepth: no view");
+  if (x0.size() % 3 != 0 || n == 0) 
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: positions x0 must be 3 per vertex");
+  if (fixed_vertex >= n) throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: fixed_vertex out of range");
+  if (views.empty()) throw RecognitionError(RecognitionErrorCode::kInvalidDepth, "fitShapeToDepth: no view");
   for (const DepthView& v : views) {
     const auto& k = v.intrinsics;
     if (v.depth.type() != CV_32FC1 || v.mask.type() != CV_8UC1 || v.depth.size() != v.mask.size() ||
         v.depth.cols != k.width || v.depth.rows != k.height)
-      throw std::invalid_argument("fitShapeToDepth: depth (CV_32FC1) and mask (CV_8UC1) must have the intrinsics' size");
+      throw RecognitionError(RecognitionErrorCode::kInvalidDepth,
+                             "fitShapeToDepth: depth (CV_32FC1) and mask (CV_8UC1) must have the intrinsics' size");
     if (!v.rotation.allFinite() || !v.translation.allFinite() ||
         !(v.rotation * v.rotation.transpose()).isApprox(Mat3::Identity(), 1e-6))
-      throw std::invalid_argument("fitShapeToDepth: a view's rotation must be finite and orthonormal");
+      throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: a view's rotation must be finite and orthonormal");
   }
   if (!(o.iterations >= 1) || !(o.edge_weight > 0) || !(o.anchor_weight >= 0) || !(o.silhouette_weight >= 0) ||
       !(o.max_correspondence_m > 0) || !(o.uncovered_step_px >= 1))
-    throw std::invalid_argument("fitShapeToDepth: invalid options");
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions,
+                           "fitShapeToDepth: invalid options (iterations, edge_weight, anchor_weight, silhouette_weight, "
+                           "max_correspondence_m or uncovered_step_px)");
   for (const auto& t : triangles)
     for (Index v : t)
-      if (v < 0 || v >= n) throw std::invalid_argument("fitShapeToDepth: triangle index out of range");
+      if (v < 0 || v >= n) throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: triangle index out of range");
 
   // Unique mesh edges.
   std::vector<std::pair<Index, Index>> edges;

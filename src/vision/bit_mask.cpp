@@ -4,6 +4,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "textile_handling/vision/vision_errors.h"
+
 namespace textile_handling {
 namespace vision {
 
@@ -17,9 +19,9 @@ std::uint64_t lastWordMask(int width) {
 void requireSameSize(const BitMask& a, const BitMask& b, const char* what) {
   if (!a.sameSize(b)) {
     std::ostringstream os;
-    os << what << ": mask sizes differ (" << a.width() << "x" << a.height() << " vs " << b.width() << "x"
+    os << "mask sizes differ (" << a.width() << "x" << a.height() << " vs " << b.width() << "x"
        << b.height() << ")";
-    throw std::invalid_argument(os.str());
+    throw InvalidArgumentError(what, "mask", os.str());
   }
 }
 
@@ -27,7 +29,8 @@ void requireSameSize(const BitMask& a, const BitMask& b, const char* what) {
 
 BitMask::BitMask(int width, int height) {
   if (width < 0 || height < 0)
-    throw std::invalid_argument("BitMask: negative size " + std::to_string(width) + "x" + std::to_string(height));
+    throw InvalidArgumentError("BitMask", width < 0 ? "width" : "height",
+                               "negative size (width x height) " + std::to_string(width) + "x" + std::to_string(height));
   width_ = width;
   height_ = height;
   words_per_row_ = (width + 63) / 64;
@@ -36,7 +39,7 @@ BitMask::BitMask(int width, int height) {
 
 bool BitMask::at(int x, int y) const {
   if (x < 0 || y < 0 || x >= width_ || y >= height_)
-    throw std::out_of_range("BitMask::at: (" + std::to_string(x) + ", " + std::to_string(y) + ") outside " +
+    throw IndexOutOfRangeError("BitMask::at: (x, y) = (" + std::to_string(x) + ", " + std::to_string(y) + ") outside " +
                             std::to_string(width_) + "x" + std::to_string(height_));
   return get(x, y);
 }
@@ -148,7 +151,7 @@ BitMask BitMask::fromString(const std::string& text) {
   if (lines.empty()) return BitMask();
   const std::size_t w = lines.front().size();
   for (const auto& l : lines)
-    if (l.size() != w) throw std::invalid_argument("BitMask::fromString: lines of different length");
+    if (l.size() != w) throw InvalidArgumentError("BitMask::fromString", "text", "text lines of different length");
   BitMask m(static_cast<int>(w), static_cast<int>(lines.size()));
   for (std::size_t y = 0; y < lines.size(); ++y)
     for (std::size_t x = 0; x < w; ++x) {
@@ -183,7 +186,8 @@ double iou(const BitMask& a, const BitMask& b, int dx, int dy) {
 
 ShiftedIou bestShiftIou(const BitMask& a, const BitMask& b, int max_dx, int max_dy) {
   requireSameSize(a, b, "bestShiftIou");
-  if (max_dx < 0 || max_dy < 0) throw std::invalid_argument("bestShiftIou: negative shift range");
+  if (max_dx < 0 || max_dy < 0)
+    throw InvalidArgumentError("bestShiftIou", max_dx < 0 ? "max_dx" : "max_dy", "negative shift range (max_dx, max_dy must be >= 0)");
   const std::int64_t na = a.count(), nb = b.count();
   ShiftedIou best;
   bool have = false;

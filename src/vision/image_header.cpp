@@ -5,13 +5,15 @@
 #include <stdexcept>
 #include <vector>
 
+#include "textile_handling/vision/vision_errors.h"
+
 namespace textile_handling {
 namespace vision {
 
 namespace {
 
 [[noreturn]] void bad(const std::string& path, const std::string& why) {
-  throw std::invalid_argument("image '" + path + "': " + why);
+  throw ImageDecodeError(path, why);
 }
 
 std::int64_t be16(const unsigned char* p) { return (std::int64_t{p[0]} << 8) | p[1]; }

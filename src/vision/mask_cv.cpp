@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "textile_handling/vision/vision_errors.h"
 namespace textile_handling {
 namespace vision {
 
@@ -20,7 +21,7 @@ cv::Mat toMat(const BitMask& mask) {
 BitMask fromMat(const cv::Mat& image) {
   if (image.empty()) return BitMask();
   if (image.type() != CV_8UC1)
-    throw std::invalid_argument("fromMat: expected a CV_8UC1 mask, got type " + std::to_string(image.type()));
+    throw InvalidArgumentError("fromMat", "image", "image must be a CV_8UC1 mask, got type " + std::to_string(image.type()));
   BitMask m(image.cols, image.rows);
   for (int y = 0; y < image.rows; ++y) {
     const std::uint8_t* r = image.ptr<std::uint8_t>(y);
@@ -33,9 +34,9 @@ BitMask fromMat(const cv::Mat& image) {
 
 Vec2 metresPerPixelAtDepth(const PinholeIntrinsics& k, double depth) {
   if (!(depth > 0) || !std::isfinite(depth))
-    throw std::invalid_argument("metresPerPixelAtDepth: depth must be finite and > 0");
+    throw InvalidArgumentError("metresPerPixelAtDepth", "depth", "depth must be finite and > 0");
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy))
-    throw std::invalid_argument("metresPerPixelAtDepth: focal lengths must be finite and > 0");
+    throw InvalidArgumentError("metresPerPixelAtDepth", "intrinsics.fx/fy", "focal lengths intrinsics.fx, fy must be finite and > 0");
   return Vec2(depth / k.fx, depth / k.fy);
 }
 
@@ -86,32 +87,35 @@ double coverageBytes(const cv::Mat& mask, double sx, double sy, const CanonicalF
 
 cv::Mat canonicalCoverage(const cv::Mat& mask, const Vec2& hold_pixel, const Vec2& mpp, const CanonicalFrame& frame) {
   frame.validate();
-  if (mask.empty()) throw std::invalid_argument("canonicaliseCameraMask: the camera mask is empty");
+  if (mask.empty()) throw InvalidArgumentError("canonicaliseCameraMask", "mask", "the camera mask is empty");
   if (mask.type() != CV_8UC1)
-    throw std::invalid_argument("canonicaliseCameraMask: expected a CV_8UC1 mask, got type " +
-                                std::to_string(mask.type()));
-  if (!hold_pixel.allFinite()) throw std::invalid_argument("canonicaliseCameraMask: hold pixel is not finite");
+    throw InvalidArgumentError("canonicaliseCameraMask", "mask",
+                               "the camera mask must be CV_8UC1, got type " + std::to_string(mask.type()));
+  if (!hold_pixel.allFinite()) throw InvalidArgumentError("canonicaliseCameraMask", "hold_pixel", "hold pixel is not finite");
   if (!(mpp.x() > 0) || !(mpp.y() > 0) || !mpp.allFinite())
-    throw std::invalid_argument("canonicaliseCameraMask: metres_per_pixel must be finite and > 0");
+    throw InvalidArgumentError("canonicaliseCameraMask", "metres_per_pixel", "metres_per_pixel must be finite and > 0");
 
   if (!(std::abs(hold_pixel.x()) <= kMaxHoldPixelOffset && std::abs(hold_pixel.y()) <= kMaxHoldPixelOffset))
-    throw std::invalid_argument("canonicaliseCameraMask: hold pixel (" + std::to_string(hold_pixel.x()) + ", " +
-                                std::to_string(hold_pixel.y()) + ") is more than " +
-                                std::to_string(static_cast<long>(kMaxHoldPixelOffset)) + " px from the image");
+    throw LimitExceededError("canonicaliseCameraMask", "hold_pixel",
+                             "hold pixel (" + std::to_string(hold_pixel.x()) + ", " + std::to_string(hold_pixel.y()) +
+                                 ") is more than " + std::to_string(static_cast<long>(kMaxHoldPixelOffset)) +
+                                 " px from the image");
 
   // Canonical continuous X maps to camera continuous x = hold_u + 0.5 + (X - W/2) * (mpp_c / mpp_x).
   const double sx = frame.metres_per_pixel / mpp.x(), sy = frame.metres_per_pixel / mpp.y();
   if (!(sx >= 1.0 / kMaxScaleRatio && sx <= kMaxScaleRatio && sy >= 1.0 / kMaxScaleRatio && sy <= kMaxScaleRatio))
-    throw std::invalid_argument("canonicaliseCameraMask: metres_per_pixel (" + std::to_string(mpp.x()) + ", " +
-                                std::to_string(mpp.y()) + ") is out of range: one canonical pixel (" +
-                                std::to_string(frame.metres_per_pixel) + " m) would span " + std::to_string(sx) +
-                                " camera pixels; allowed 1/" + std::to_string(static_cast<long>(kMaxScaleRatio)) +
-                                ".." + std::to_string(static_cast<long>(kMaxScaleRatio)));
+    throw LimitExceededError("canonicaliseCameraMask", "metres_per_pixel",
+                             "metres_per_pixel (" + std::to_string(mpp.x()) + ", " + std::to_string(mpp.y()) +
+                                 ") is out of range: one canonical pixel (" + std::to_string(frame.metres_per_pixel) +
+                                 " m) would span " + std::to_string(sx) + " camera pixels; allowed 1/" +
+                                 std::to_string(static_cast<long>(kMaxScaleRatio)) + ".." +
+                                 std::to_string(static_cast<long>(kMaxScaleRatio)));
   const double bytes = coverageBytes(mask, sx, sy, frame);
   if (bytes > static_cast<double>(kMaxCoverageBytes))
-    throw std::invalid_argument("canonicaliseCameraMask: the resampling would allocate " +
-                                std::to_string(static_cast<long long>(bytes / (1 << 20))) + " MiB (limit " +
-                                std::to_string(kMaxCoverageBytes >> 20) + " MiB); is the canonical frame too large?");
+    throw LimitExceededError("canonicaliseCameraMask", "frame",
+                             "the resampling would allocate " + std::to_string(static_cast<long long>(bytes / (1 << 20))) +
+                                 " MiB (limit " + std::to_string(kMaxCoverageBytes >> 20) +
+                                 " MiB); is the canonical frame too large?");
   const double ax = hold_pixel.x() + 0.5 - 0.5 * frame.width_px * sx;
   const double ay = hold_pixel.y() + 0.5 - frame.top_margin_px * sy;
   const AxisWeights wx = axisWeights(frame.width_px, mask.cols, ax, sx);

@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "textile_handling/sim/timing.h"
+#include "textile_handling/vision/vision_errors.h"
 
 namespace textile_handling {
 namespace vision {
@@ -17,8 +18,8 @@ namespace vision {
 SyntheticMesh syntheticHangingMesh(const HangingShapeParams& p, const Vec3& hold) {
   if (!(p.width > 0) || !(p.height > 0) || !(p.spacing > 0) || !std::isfinite(p.width) || !std::isfinite(p.height) ||
       !std::isfinite(p.spacing))
-    throw std::invalid_argument("syntheticHangingMesh: width, height and spacing must be finite and > 0");
-  if (!hold.allFinite()) throw std::invalid_argument("syntheticHangingMesh: hold point is not finite");
+    throw InvalidArgumentError("syntheticHangingMesh", "p.width/height/spacing", "p.width, p.height and p.spacing must be finite and > 0");
+  if (!hold.allFinite()) throw InvalidArgumentError("syntheticHangingMesh", "hold", "hold point is not finite");
   const int nx = std::max(2, static_cast<int>(std::lround(p.width / p.spacing)) + 1);
   const int ny = std::max(2, static_cast<int>(std::lround(p.height / p.spacing)) + 1);
   Vec2 c(0.5 * p.width - p.hold_u, 0.5 * p.height - p.hold_v);
@@ -137,9 +138,9 @@ bool sameResult(const QueryResult& a, const QueryResult& b) {
 MatchBenchmarkReport benchmarkQueries(const SilhouetteMatcher& matcher, const std::vector<BitMask>& queries,
                                       const MatchOptions& options, const std::vector<std::string>& truth,
                                       int verify_queries) {
-  if (queries.empty()) throw std::invalid_argument("benchmarkQueries: no queries");
+  if (queries.empty()) throw InvalidArgumentError("benchmarkQueries", "queries", "no queries");
   if (!truth.empty() && truth.size() != queries.size())
-    throw std::invalid_argument("benchmarkQueries: truth must be empty or have one label per query");
+    throw InvalidArgumentError("benchmarkQueries", "truth", "truth must be empty or have one label per query");
   MatchBenchmarkReport r;
   r.entries = matcher.size();
   r.groups = matcher.numGroups();
@@ -194,7 +195,7 @@ MatchBenchmarkReport benchmarkQueries(const SilhouetteMatcher& matcher, const st
 }
 
 MatchBenchmarkReport runMatchBenchmark(const MatchBenchmarkConfig& cfg) {
-  if (cfg.entries < 1 || cfg.queries < 1) throw std::invalid_argument("runMatchBenchmark: entries and queries must be >= 1");
+  if (cfg.entries < 1 || cfg.queries < 1) throw InvalidArgumentError("runMatchBenchmark", "cfg.entries/queries", "cfg.entries and cfg.queries must be >= 1");
   cfg.frame.validate();
   const auto t0 = std::chrono::steady_clock::now();
   std::mt19937_64 rng(cfg.seed);

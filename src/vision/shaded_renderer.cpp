@@ -9,18 +9,19 @@
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
+#include "textile_handling/vision/vision_errors.h"
 namespace textile_handling {
 namespace vision {
 
 CameraPose CameraPose::lookAt(const Vec3& eye, const Vec3& target, const Vec3& up) {
   if (!eye.allFinite() || !target.allFinite() || !up.allFinite())
-    throw std::invalid_argument("CameraPose::lookAt: non-finite input");
+    throw InvalidArgumentError("CameraPose::lookAt", "eye/target/up", "eye, target and up must be finite");
   const Vec3 fwd = target - eye;
-  if (fwd.norm() < 1e-12) throw std::invalid_argument("CameraPose::lookAt: eye and target coincide");
+  if (fwd.norm() < 1e-12) throw InvalidArgumentError("CameraPose::lookAt", "target", "eye and target coincide");
   const Vec3 z = fwd.normalized();
   const Vec3 xr = z.cross(up);
   if (xr.norm() < 1e-9 * std::max(1.0, up.norm()))
-    throw std::invalid_argument("CameraPose::lookAt: line of sight is parallel to the up vector");
+    throw InvalidArgumentError("CameraPose::lookAt", "up", "line of sight is parallel to the up vector");
   const Vec3 x = xr.normalized();
   const Vec3 y = z.cross(x);
   CameraPose p;
@@ -34,7 +35,8 @@ CameraPose CameraPose::lookAt(const Vec3& eye, const Vec3& target, const Vec3& u
 CameraPose cameraPoseForView(const Vec3& hold, double azimuth_deg, double distance, double height) {
   if (!hold.allFinite() || !std::isfinite(azimuth_deg) || !std::isfinite(height) || !(distance > 0) ||
       !std::isfinite(distance))
-    throw std::invalid_argument("cameraPoseForView: need a finite hold point, angle, height and distance > 0");
+    throw InvalidArgumentError("cameraPoseForView", "hold/azimuth_deg/height/distance",
+                               "need a finite hold point, azimuth_deg, height and distance > 0");
   const Vec3 d = viewDirection(azimuth_deg);
   CameraPose p;
   p.rotation.col(0) = viewRight(azimuth_deg);
@@ -58,36 +60,37 @@ namespace {
 void validateOptions(const ShadedRenderOptions& o) {
   const auto& k = o.intrinsics;
   if (k.width <= 0 || k.height <= 0 || k.width > 16384 || k.height > 16384)
-    throw std::invalid_argument("renderShaded: intrinsics.width/height must be in 1..16384");
+    throw InvalidArgumentError("renderShaded", "intrinsics.width/height", "intrinsics.width/height must be in 1..16384");
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
       !std::isfinite(k.cy))
-    throw std::invalid_argument("renderShaded: intrinsics need finite fx, fy > 0 and finite cx, cy");
+    throw InvalidArgumentError("renderShaded", "intrinsics", "intrinsics need finite fx, fy > 0 and finite cx, cy");
   if (!o.camera.rotation.allFinite() || !o.camera.position.allFinite())
-    throw std::invalid_argument("renderShaded: camera pose is not finite");
+    throw InvalidArgumentError("renderShaded", "camera", "camera pose is not finite");
   if (!(o.light_direction.norm() > 0) || !o.light_direction.allFinite())
-    throw std::invalid_argument("renderShaded: light_direction must be finite and non-zero");
+    throw InvalidArgumentError("renderShaded", "light_direction", "light_direction must be finite and non-zero");
   if (!(o.ambient >= 0) || !(o.diffuse >= 0) || !std::isfinite(o.ambient) || !std::isfinite(o.diffuse))
-    throw std::invalid_argument("renderShaded: ambient and diffuse must be finite and >= 0");
+    throw InvalidArgumentError("renderShaded", "ambient/diffuse", "ambient and diffuse must be finite and >= 0");
   if (!(o.noise_sigma >= 0) || !std::isfinite(o.noise_sigma))
-    throw std::invalid_argument("renderShaded: noise_sigma must be finite and >= 0");
+    throw InvalidArgumentError("renderShaded", "noise_sigma", "noise_sigma must be finite and >= 0");
   if (o.checker_px < 1 || o.texture_blob_px < 1)
-    throw std::invalid_argument("renderShaded: checker_px and texture_blob_px must be >= 1");
+    throw InvalidArgumentError("renderShaded", "checker_px/texture_blob_px", "checker_px and texture_blob_px must be >= 1");
 }
 
 void validateMeshShaded(const VecX& positions, const std::vector<Triangle>& triangles) {
   if (positions.size() == 0 || positions.size() % 3 != 0)
-    throw std::invalid_argument("renderShaded: positions must hold 3 values per vertex (got " +
-                                std::to_string(positions.size()) + ")");
+    throw InvalidArgumentError("renderShaded", "positions",
+                               "positions must hold 3 values per vertex (got " + std::to_string(positions.size()) + ")");
   for (Eigen::Index i = 0; i < positions.size(); ++i)
     if (!std::isfinite(positions[i]))
-      throw std::invalid_argument("renderShaded: position of vertex " + std::to_string(i / 3) + " is not finite");
-  if (triangles.empty()) throw std::invalid_argument("renderShaded: mesh has no triangles");
+      throw InvalidArgumentError("renderShaded", "positions", "position of vertex " + std::to_string(i / 3) + " is not finite");
+  if (triangles.empty()) throw InvalidArgumentError("renderShaded", "triangles", "mesh has no triangles");
   const Index n = static_cast<Index>(positions.size() / 3);
   for (std::size_t t = 0; t < triangles.size(); ++t)
     for (Index v : triangles[t])
       if (v < 0 || v >= n)
-        throw std::invalid_argument("renderShaded: triangle " + std::to_string(t) + " has vertex index " +
-                                    std::to_string(v) + " outside [0, " + std::to_string(n) + ")");
+        throw InvalidArgumentError("renderShaded", "triangles",
+                                   "triangle " + std::to_string(t) + " has vertex index " + std::to_string(v) +
+                                       " outside [0, " + std::to_string(n) + ")");
 }
 
 cv::Mat3f makeBackground(const ShadedRenderOptions& o, cv::RNG& rng) {

@@ -263,13 +263,13 @@ struct MatcherAccess {
       : m(matcher), Dx(std::min(o.max_dx, matcher.width_ - 1)), Dy(std::min(o.max_dy, matcher.height_ - 1)) {}
 
   void validateQuery(const BitMask& q, const char* what) const {
-    if (m.meta_.empty()) throw std::invalid_argument(std::string(what) + ": the silhouette database is empty");
-    if (q.empty()) throw std::invalid_argument(std::string(what) + ": query mask is empty (0 pixels wide or high)");
+    if (m.meta_.empty()) throw InvalidArgumentError(what, "matcher", "the silhouette database is empty");
+    if (q.empty()) throw InvalidArgumentError(what, "mask", "query mask is empty (0 pixels wide or high)");
     if (q.width() != m.width_ || q.height() != m.height_) {
       std::ostringstream os;
-      os << what << ": query mask is " << q.width() << "x" << q.height() << " but the database holds " << m.width_ << "x"
+      os << "query mask is " << q.width() << "x" << q.height() << " but the database holds " << m.width_ << "x"
          << m.height_ << " silhouettes";
-      throw std::invalid_argument(os.str());
+      throw InvalidArgumentError(what, "mask", os.str());
     }
   }
 
@@ -433,8 +433,8 @@ bool betterEntry(double s1, std::uint32_t e1, double s2, std::uint32_t e2) {
 
 void validateOptions(const MatchOptions& o, const char* what) {
   if (o.max_dx < 0 || o.max_dy < 0)
-    throw std::invalid_argument(std::string(what) + ": max_dx and max_dy must be >= 0");
-  if (o.top_k < 1) throw std::invalid_argument(std::string(what) + ": top_k must be >= 1");
+    throw InvalidArgumentError(what, "max_dx/max_dy", "max_dx and max_dy must be >= 0");
+  if (o.top_k < 1) throw InvalidArgumentError(what, "top_k", "top_k must be >= 1");
 }
 
 }  // namespace
@@ -443,11 +443,11 @@ void validateOptions(const MatchOptions& o, const char* what) {
 
 std::size_t SilhouetteMatcher::add(const SilhouetteEntry& entry) {
   const BitMask& mk = entry.mask;
-  if (mk.empty()) throw std::invalid_argument("SilhouetteMatcher::add: mask is empty (0 pixels wide or high)");
+  if (mk.empty()) throw InvalidArgumentError("SilhouetteMatcher::add", "mask", "mask is empty (0 pixels wide or high)");
   if (mk.width() > kMaxSide || mk.height() > kMaxSide)
-    throw std::invalid_argument("SilhouetteMatcher::add: masks larger than 8192 px per side are not supported");
+    throw LimitExceededError("SilhouetteMatcher::add", "mask", "masks larger than 8192 px per side are not supported");
   if (!std::isfinite(entry.view_angle_deg))
-    throw std::invalid_argument("SilhouetteMatcher::add: view angle is not finite");
+    throw InvalidArgumentError("SilhouetteMatcher::add", "view_angle_deg", "view angle is not finite");
   if (meta_.empty()) {
     width_ = mk.width();
     height_ = mk.height();
@@ -458,9 +458,9 @@ std::size_t SilhouetteMatcher::add(const SilhouetteEntry& entry) {
     cols_padded16_ = roundUp16(width_);
   } else if (mk.width() != width_ || mk.height() != height_) {
     std::ostringstream os;
-    os << "SilhouetteMatcher::add: mask is " << mk.width() << "x" << mk.height() << " but the database holds "
+    os << "mask is " << mk.width() << "x" << mk.height() << " but the database holds "
        << width_ << "x" << height_ << " silhouettes";
-    throw std::invalid_argument(os.str());
+    throw InvalidArgumentError("SilhouetteMatcher::add", "mask", os.str());
   }
   const std::size_t idx = meta_.size();
   const auto key = std::make_pair(entry.textile_id, entry.hold_point_id);
@@ -515,7 +515,7 @@ void SilhouetteMatcher::reserve(std::size_t n) {
 void SilhouetteMatcher::clear() { *this = SilhouetteMatcher(); }
 
 SilhouetteEntry SilhouetteMatcher::entry(std::size_t i) const {
-  if (i >= meta_.size()) throw std::out_of_range("SilhouetteMatcher::entry: index out of range");
+  if (i >= meta_.size()) throw IndexOutOfRangeError("SilhouetteMatcher::entry: index out of range");
   SilhouetteEntry e;
   e.textile_id = meta_[i].textile_id;
   e.hold_point_id = meta_[i].hold_point_id;
@@ -532,14 +532,14 @@ QueryResult SilhouetteMatcher::query(const BitMask& mask, const MatchOptions& op
   MatcherAccess acc(*this, options);
   acc.validateQuery(mask, "SilhouetteMatcher::query");
   const std::int64_t qa = mask.count();
-  if (qa == 0) throw std::invalid_argument("SilhouetteMatcher::query: query mask has no foreground pixels");
+  if (qa == 0) throw InvalidArgumentError("SilhouetteMatcher::query", "mask", "query mask has no foreground pixels");
 
   // Aggregation groups: (textile, hold point) by default, or the caller's coarser grouping.
   const std::vector<std::uint32_t>* custom = options.group_of_entry;
   std::size_t num_groups = groups_.size();
   if (custom) {
     if (custom->size() != meta_.size())
-      throw std::invalid_argument("SilhouetteMatcher::query: group_of_entry has " + std::to_string(custom->size()) +
+      throw InvalidArgumentError("SilhouetteMatcher::query", "group_of_entry", "group_of_entry has " + std::to_string(custom->size()) +
                                   " values for " + std::to_string(meta_.size()) + " entries");
     num_groups = 0;
     for (std::uint32_t g : *custom) num_groups = std::max<std::size_t>(num_groups, static_cast<std::size_t>(g) + 1);
@@ -646,13 +646,13 @@ QueryResult SilhouetteMatcher::query(const BitMask& mask, const MatchOptions& op
 FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& images,
                                                const MatchOptions& options) const {
   validateOptions(options, "SilhouetteMatcher::queryFused");
-  if (images.empty()) throw std::invalid_argument("SilhouetteMatcher::queryFused: no images");
+  if (images.empty()) throw InvalidArgumentError("SilhouetteMatcher::queryFused", "images", "no images");
   MatcherAccess acc(*this, options);
   for (std::size_t i = 0; i < images.size(); ++i) {
     const std::string what = "SilhouetteMatcher::queryFused (image " + std::to_string(i) + ")";
     acc.validateQuery(images[i].mask, what.c_str());
-    if (images[i].mask.count() == 0) throw std::invalid_argument(what + ": mask has no foreground pixels");
-    if (!std::isfinite(images[i].relative_view_deg)) throw std::invalid_argument(what + ": relative view angle is not finite");
+    if (images[i].mask.count() == 0) throw InvalidArgumentError(what, "mask", "mask has no foreground pixels");
+    if (!std::isfinite(images[i].relative_view_deg)) throw InvalidArgumentError(what, "relative_view_deg", "relative view angle is not finite");
   }
   const std::size_t m = images.size();
   const std::size_t n = meta_.size();
@@ -791,15 +791,15 @@ FusedQueryResult SilhouetteMatcher::queryFused(const std::vector<FusionImage>& i
   if (options.group_of_entry) {
     const std::vector<std::uint32_t>& ge = *options.group_of_entry;
     if (ge.size() != n)
-      throw std::invalid_argument("SilhouetteMatcher::queryFused: group_of_entry has " + std::to_string(ge.size()) +
+      throw InvalidArgumentError("SilhouetteMatcher::queryFused", "group_of_entry", "group_of_entry has " + std::to_string(ge.size()) +
                                   " values for " + std::to_string(n) + " entries");
     num_coarse = 0;
     for (std::size_t g = 0; g < groups_.size(); ++g) {
       const std::uint32_t c0 = ge[groups_[g].entries.front()];
       for (std::uint32_t e : groups_[g].entries)
         if (ge[e] != c0)
-          throw std::invalid_argument(
-              "SilhouetteMatcher::queryFused: group_of_entry splits the entries of one (textile, hold point)");
+          throw InvalidArgumentError(
+              "SilhouetteMatcher::queryFused", "group_of_entry", "group_of_entry splits the entries of one (textile, hold point)");
       coarse[g] = static_cast<int>(c0);
       num_coarse = std::max<std::size_t>(num_coarse, static_cast<std::size_t>(c0) + 1);
     }

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "textile_handling/sim/cloth_topology.h"
+#include "textile_handling/vision/vision_errors.h"
 
 namespace textile_handling {
 namespace vision {
@@ -17,37 +18,38 @@ constexpr double kDegToRad = kPi / 180.0;
 void validateMesh(const VecX& positions, const std::vector<Triangle>& triangles) {
   if (positions.size() == 0 || positions.size() % 3 != 0) {
     std::ostringstream os;
-    os << "silhouette renderer: positions must hold 3 values per vertex (got " << positions.size() << ")";
-    throw std::invalid_argument(os.str());
+    os << "positions must hold 3 values per vertex (got " << positions.size() << ")";
+    throw InvalidArgumentError("silhouette renderer", "positions", os.str());
   }
   const Index n = static_cast<Index>(positions.size() / 3);
   for (Index i = 0; i < positions.size(); ++i) {
     if (!std::isfinite(positions[i])) {
       std::ostringstream os;
-      os << "silhouette renderer: position of vertex " << i / 3 << " is not finite";
-      throw std::invalid_argument(os.str());
+      os << "position of vertex " << i / 3 << " is not finite";
+      throw InvalidArgumentError("silhouette renderer", "positions", os.str());
     }
   }
-  if (triangles.empty()) throw std::invalid_argument("silhouette renderer: mesh has no triangles");
+  if (triangles.empty()) throw InvalidArgumentError("silhouette renderer", "triangles", "mesh has no triangles");
   for (std::size_t t = 0; t < triangles.size(); ++t)
     for (Index v : triangles[t])
       if (v < 0 || v >= n) {
         std::ostringstream os;
-        os << "silhouette renderer: triangle " << t << " has vertex index " << v << " outside [0, " << n << ")";
-        throw std::invalid_argument(os.str());
+        os << "triangle " << t << " has vertex index " << v << " outside [0, " << n << ")";
+        throw InvalidArgumentError("silhouette renderer", "triangles", os.str());
       }
 }
 
 void validateProjection(const SilhouetteProjection& p) {
   if (p.type != ProjectionType::kPinhole) return;
   if (!(p.camera_distance > 0) || !std::isfinite(p.camera_distance))
-    throw std::invalid_argument("silhouette renderer: pinhole camera_distance must be finite and > 0");
+    throw InvalidArgumentError("silhouette renderer", "projection.camera_distance", "pinhole camera_distance must be finite and > 0");
   if (!std::isfinite(p.camera_height))
-    throw std::invalid_argument("silhouette renderer: pinhole camera_height must be finite");
+    throw InvalidArgumentError("silhouette renderer", "projection.camera_height", "pinhole camera_height must be finite");
   const auto& k = p.intrinsics;
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
       !std::isfinite(k.cy))
-    throw std::invalid_argument("silhouette renderer: pinhole intrinsics need finite fx, fy > 0 and finite cx, cy");
+    throw InvalidArgumentError("silhouette renderer", "projection.intrinsics",
+                               "pinhole intrinsics need finite fx, fy > 0 and finite cx, cy");
 }
 
 // Maps world points of one view to canonical continuous pixel coordinates.
@@ -111,7 +113,8 @@ std::vector<Triangle> trianglesFromTopology(const ParticleTopology& topo) {
 
 CanonicalFrame CanonicalFrame::fromMetric(double width_m, double height_m, int width_px) {
   if (!(width_m > 0) || !(height_m > 0) || !std::isfinite(width_m) || !std::isfinite(height_m) || width_px < 1)
-    throw std::invalid_argument("CanonicalFrame::fromMetric: sizes must be finite and > 0");
+    throw InvalidArgumentError("CanonicalFrame::fromMetric", "width_m/height_m/width_px",
+                               "sizes width_m, height_m and width_px must be finite and > 0");
   CanonicalFrame f;
   f.width_px = width_px;
   f.metres_per_pixel = width_m / width_px;
@@ -121,20 +124,20 @@ CanonicalFrame CanonicalFrame::fromMetric(double width_m, double height_m, int w
 
 void CanonicalFrame::validate() const {
   if (width_px < 1 || height_px < 1 || width_px > 8192 || height_px > 8192)
-    throw std::invalid_argument("CanonicalFrame: size must be 1..8192 px per side");
+    throw InvalidArgumentError("CanonicalFrame", "width_px/height_px", "size (width_px, height_px) must be 1..8192 px per side");
   if (!(metres_per_pixel > 0) || !std::isfinite(metres_per_pixel))
-    throw std::invalid_argument("CanonicalFrame: metres_per_pixel must be finite and > 0");
+    throw InvalidArgumentError("CanonicalFrame", "metres_per_pixel", "metres_per_pixel must be finite and > 0");
   if (!std::isfinite(top_margin_px) || top_margin_px < 0 || top_margin_px >= height_px)
-    throw std::invalid_argument("CanonicalFrame: top_margin_px must be in [0, height_px)");
-  if (supersample < 1 || supersample > 16) throw std::invalid_argument("CanonicalFrame: supersample must be 1..16");
+    throw InvalidArgumentError("CanonicalFrame", "top_margin_px", "top_margin_px must be in [0, height_px)");
+  if (supersample < 1 || supersample > 16) throw InvalidArgumentError("CanonicalFrame", "supersample", "supersample must be 1..16");
   if (!(coverage_threshold > 0) || coverage_threshold > 1)
-    throw std::invalid_argument("CanonicalFrame: coverage_threshold must be in (0, 1]");
+    throw InvalidArgumentError("CanonicalFrame", "coverage_threshold", "coverage_threshold must be in (0, 1]");
 }
 
 std::vector<double> ViewSet::angles() const {
-  if (count < 1) throw std::invalid_argument("ViewSet: count must be >= 1 (got " + std::to_string(count) + ")");
+  if (count < 1) throw InvalidArgumentError("ViewSet", "count", "count must be >= 1 (got " + std::to_string(count) + ")");
   if (!std::isfinite(start_deg) || !std::isfinite(step_deg))
-    throw std::invalid_argument("ViewSet: start_deg and step_deg must be finite");
+    throw InvalidArgumentError("ViewSet", "start_deg/step_deg", "start_deg and step_deg must be finite");
   std::vector<double> a(static_cast<std::size_t>(count));
   for (int i = 0; i < count; ++i) a[static_cast<std::size_t>(i)] = start_deg + i * step_deg;
   return a;
@@ -225,7 +228,7 @@ Vec2 canonicalPixel(const Vec3& point, const Vec3& hold, double azimuth_deg, con
   validateProjection(projection);
   const ViewMapper vm(hold, azimuth_deg, projection, frame);
   Vec2 out;
-  if (!vm.map(point, &out)) throw std::invalid_argument("canonicalPixel: point is not in front of the camera");
+  if (!vm.map(point, &out)) throw InvalidArgumentError("canonicalPixel", "point", "point is not in front of the camera");
   return out;
 }
 
@@ -234,8 +237,8 @@ BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& tri
   frame.validate();
   validateProjection(projection);
   validateMesh(positions, triangles);
-  if (!hold.allFinite()) throw std::invalid_argument("silhouette renderer: hold point is not finite");
-  if (!std::isfinite(azimuth_deg)) throw std::invalid_argument("silhouette renderer: view angle is not finite");
+  if (!hold.allFinite()) throw InvalidArgumentError("silhouette renderer", "hold", "hold point is not finite");
+  if (!std::isfinite(azimuth_deg)) throw InvalidArgumentError("silhouette renderer", "azimuth_deg", "view angle (azimuth_deg) is not finite");
 
   const ViewMapper vm(hold, azimuth_deg, projection, frame);
   const Index n = static_cast<Index>(positions.size() / 3);
@@ -245,9 +248,9 @@ BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& tri
     Vec2 p;
     if (!vm.map(node3(positions, i), &p)) {
       std::ostringstream os;
-      os << "silhouette renderer: vertex " << i << " is behind or too close to the pinhole camera (camera distance "
+      os << "vertex " << i << " of positions is behind or too close to the pinhole camera (camera distance "
          << projection.camera_distance << " m)";
-      throw std::invalid_argument(os.str());
+      throw InvalidArgumentError("silhouette renderer", "positions", os.str());
     }
     pts[static_cast<std::size_t>(i)] = p * static_cast<double>(s);
   }
@@ -259,8 +262,8 @@ BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& tri
 BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& triangles, Index hold_particle,
                          double azimuth_deg, const SilhouetteProjection& projection, const CanonicalFrame& frame) {
   if (hold_particle < 0 || 3 * static_cast<Eigen::Index>(hold_particle) + 2 >= positions.size())
-    throw std::invalid_argument("silhouette renderer: hold particle index " + std::to_string(hold_particle) +
-                                " out of range");
+    throw InvalidArgumentError("silhouette renderer", "hold_particle",
+                               "hold particle index " + std::to_string(hold_particle) + " out of range");
   return renderSilhouette(positions, triangles, Vec3(node3(positions, hold_particle)), azimuth_deg, projection, frame);
 }
 

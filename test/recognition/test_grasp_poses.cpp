@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include "textile_handling/recognition/grasp_poses.h"
 #include "textile_handling/sim/cloth_topology.h"
@@ -63,8 +64,8 @@ TEST(GraspPoses, SamplesAnAffineShapeExactly) {
     EXPECT_LT((s.du - a.col(0)).norm(), 1e-12);
     EXPECT_LT((s.dv - a.col(1)).norm(), 1e-12);
   }
-  EXPECT_THROW(sampleRestShape(g, VecX::Zero(6), Vec2(0, 0)), std::invalid_argument);
-  EXPECT_THROW(sampleRestShape(g, x, Vec2(std::nan(""), 0)), std::invalid_argument);
+  EXPECT_THROW(sampleRestShape(g, VecX::Zero(6), Vec2(0, 0)), RecognitionError);
+  EXPECT_THROW(sampleRestShape(g, x, Vec2(std::nan(""), 0)), RecognitionError);
 }
 
 TEST(GraspPoses, FlatHangingSheet) {
@@ -120,8 +121,23 @@ TEST(GraspPoses, RotationAboutTheHoldAxis) {
   }
   const VecX placed = placeInHoldFrame(x, held, 30.0);
   EXPECT_LT(placed.segment<3>(3 * held).norm(), 1e-12);
-  EXPECT_THROW(placeInHoldFrame(x, -1, 0.0), std::invalid_argument);
-  EXPECT_THROW(computeGraspPoses(sheet(), g, VecX::Zero(9), held, 0.0, geo), std::invalid_argument);
+  EXPECT_THROW(placeInHoldFrame(x, -1, 0.0), RecognitionError);
+  EXPECT_THROW(computeGraspPoses(sheet(), g, VecX::Zero(9), held, 0.0, geo), RecognitionError);
+  // The codes say what is wrong: the shape (geometry) or the options.
+  try {
+    placeInHoldFrame(x, -1, 0.0);
+  } catch (const RecognitionError& e) {
+    EXPECT_EQ(e.code(), RecognitionErrorCode::kInvalidGeometry) << e.what();
+  }
+  GraspPoseOptions bad;
+  bad.boundary_tolerance_m = -1;
+  try {
+    computeGraspPoses(sheet(), g, x, held, 0.0, geo, bad);
+    ADD_FAILURE() << "a negative boundary tolerance was accepted";
+  } catch (const RecognitionError& e) {
+    EXPECT_EQ(e.code(), RecognitionErrorCode::kInvalidOptions) << e.what();
+    EXPECT_NE(std::string(e.what()).find("boundary_tolerance_m"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GraspPoses, OutlineVerticesOnRequest) {

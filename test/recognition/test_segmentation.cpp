@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <string>
 
 #include <opencv2/imgproc.hpp>
 
@@ -88,6 +89,21 @@ TEST(Segmentation, Encodings) {
   EXPECT_TRUE(throwsCode([&] { toBgr8(bgr, "mono8"); }, RecognitionErrorCode::kInvalidImage));
   EXPECT_TRUE(throwsCode([&] { toBgr8(cv::Mat(4, 5, CV_16UC3), "rgb8"); }, RecognitionErrorCode::kInvalidImage));
   EXPECT_TRUE(throwsCode([&] { toBgr8(cv::Mat(), "bgr8"); }, RecognitionErrorCode::kInvalidImage));
+}
+
+TEST(Segmentation, EnumNamesRoundTrip) {
+  for (BackgroundModel m : {BackgroundModel::kUniformColour, BackgroundModel::kBorderMedian, BackgroundModel::kBackgroundImage})
+    EXPECT_EQ(backgroundModelFromString(toString(m)), m);
+  for (ColourSpace c : {ColourSpace::kBgr, ColourSpace::kLab, ColourSpace::kAb}) EXPECT_EQ(colourSpaceFromString(toString(c)), c);
+  for (DepthMode d : {DepthMode::kColourOnly, DepthMode::kGate, DepthMode::kIntersect, DepthMode::kDepthOnly})
+    EXPECT_EQ(depthModeFromString(toString(d)), d);
+  EXPECT_STREQ(toString(BackgroundModel::kBorderMedian), "border_median");
+  std::string msg;
+  EXPECT_TRUE(throwsCode([] { depthModeFromString("Gate"); }, RecognitionErrorCode::kInvalidOptions, &msg));
+  EXPECT_NE(msg.find("depth_mode 'Gate'"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("colour_only, gate, intersect, depth_only"), std::string::npos) << msg;
+  EXPECT_TRUE(throwsCode([] { colourSpaceFromString(""); }, RecognitionErrorCode::kInvalidOptions));
+  EXPECT_TRUE(throwsCode([] { backgroundModelFromString("green"); }, RecognitionErrorCode::kInvalidOptions));
 }
 
 TEST(Segmentation, DepthUnits) {

@@ -114,19 +114,19 @@ TEST(ShapeFitting, BadInputIsRejected) {
   const Sheet s = makeSheet(0.0);
   const vision::ShadedImage m = measure(s);
   EXPECT_THROW(fitShapeToDepth(VecX(s.x.head(s.x.size() - 1)), s.triangles, s.top, m.depth, m.mask, vga()),
-               std::invalid_argument);
-  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.x.size(), m.depth, m.mask, vga()), std::invalid_argument);
+               RecognitionError);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.x.size(), m.depth, m.mask, vga()), RecognitionError);
   std::vector<vision::Triangle> bad = s.triangles;
   bad.push_back({0, 1, static_cast<Index>(s.x.size())});
-  EXPECT_THROW(fitShapeToDepth(s.x, bad, s.top, m.depth, m.mask, vga()), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepth(s.x, bad, s.top, m.depth, m.mask, vga()), RecognitionError);
   cv::Mat depth16;
   m.depth.convertTo(depth16, CV_16UC1);
-  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, depth16, m.mask, vga()), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, depth16, m.mask, vga()), RecognitionError);
   cv::Mat small(10, 10, CV_32FC1, cv::Scalar(1.0));
-  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, small, m.mask, vga()), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, small, m.mask, vga()), RecognitionError);
   ShapeFitOptions o;
   o.iterations = 0;
-  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), RecognitionError);
 }
 
 TEST(ShapeFitting, SecondViewFromBehindFitsInTheCommonFrame) {
@@ -172,6 +172,6 @@ TEST(ShapeFitting, SecondViewFromBehindFitsInTheCommonFrame) {
   // A view with a rotation that is not a rotation is refused.
   DepthView bad = v2;
   bad.rotation *= 2.0;
-  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {bad}), std::invalid_argument);
-  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {}), std::invalid_argument);
+  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {bad}), RecognitionError);
+  EXPECT_THROW(fitShapeToDepthViews(guess.x, guess.triangles, guess.top, {}), RecognitionError);
 }

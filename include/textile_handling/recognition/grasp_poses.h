@@ -25,6 +25,7 @@
 #include <Eigen/Geometry>
 
 #include "textile_handling/recognition/camera_geometry.h"
+#include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/sim/types.h"
 
@@ -71,22 +72,24 @@ struct RestShapeSample {
 
 /// Samples the rest shape (positions: 3 per active particle of `grid`) at textile point p: bilinear
 /// interpolation in the grid cell containing p when its four nodes are active, else the nearest active
-/// particle with finite-difference tangents. Throws std::invalid_argument for a size mismatch, an empty
-/// grid or a non-finite p.
+/// particle with finite-difference tangents. Throws RecognitionError(kInvalidGeometry) for a size mismatch,
+/// an empty grid or a non-finite p.
 RestShapeSample sampleRestShape(const ParticleGrid& grid, const VecX& positions, const Vec2& p);
 
-/// The shape placed in H: p_H = R_z(rotation_deg) (x - x_hold) for every particle.
+/// The shape placed in H: p_H = R_z(rotation_deg) (x - x_hold) for every particle. Throws
+/// RecognitionError(kInvalidGeometry) for positions not 3 per particle or a held particle out of range.
 VecX placeInHoldFrame(const VecX& positions, Index held_particle, double rotation_deg);
 
 /// The shape mirrored across the vertical plane through the held particle whose normal is the view
 /// direction d(view_deg): the same (orthographic) silhouette at view_deg, the other chirality; particle
-/// labels are kept. Throws std::invalid_argument as placeInHoldFrame().
+/// labels are kept. Throws RecognitionError as placeInHoldFrame().
 VecX reflectAcrossView(const VecX& positions, Index held_particle, double view_deg);
 
 /// Poses of the named points of `textile` (and outline vertices, per options) on the rest shape
 /// `positions` (grid = the textile rasterised at the simulation's spacing), placed with
-/// placeInHoldFrame(rotation_deg); camera-frame copies via `geometry`. Throws std::invalid_argument for
-/// inconsistent input (size mismatch, bad held particle).
+/// placeInHoldFrame(rotation_deg); camera-frame copies via `geometry`. Throws RecognitionError:
+/// kInvalidGeometry for inconsistent input (size mismatch, bad held particle), kInvalidOptions for a
+/// negative or non-finite boundary tolerance.
 std::vector<GraspPose> computeGraspPoses(const TextileOutline& textile, const ParticleGrid& grid, const VecX& positions,
                                          Index held_particle, double rotation_deg, const HoldGeometry& geometry,
                                          const GraspPoseOptions& options = {});

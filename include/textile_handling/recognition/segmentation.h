@@ -48,6 +48,17 @@ enum class DepthMode {
   kDepthOnly,          ///< the depth cluster alone (no colour model)
 };
 
+/// Names of the segmentation enums as configuration files and ROS parameters spell them ("uniform_colour",
+/// "border_median", "background_image"; "bgr", "lab", "ab"; "colour_only", "gate", "intersect",
+/// "depth_only"). The parsers take exactly these names and throw RecognitionError(kInvalidOptions) naming
+/// the given text and the accepted names for anything else.
+const char* toString(BackgroundModel model);
+const char* toString(ColourSpace space);
+const char* toString(DepthMode mode);
+BackgroundModel backgroundModelFromString(const std::string& name);
+ColourSpace colourSpaceFromString(const std::string& name);
+DepthMode depthModeFromString(const std::string& name);
+
 /// Crop box and Euclidean clustering of depth points (depth image or point cloud).
 struct DepthSegmentationOptions {
   /// Crop box in the hold frame H (z up, origin at the hold point): |x|, |y| <= half_width_m around the

@@ -36,6 +36,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/sim/types.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
@@ -91,8 +92,9 @@ struct DepthView {
 };
 
 /// Fits `positions` (3 per vertex, the common frame [m]) to every view at once (see above); otherwise as
-/// fitShapeToDepth, with the correspondence counts summed over the views. Throws std::invalid_argument for
-/// inconsistent input (sizes, types, bad indices, no view, a non-orthonormal rotation).
+/// fitShapeToDepth, with the correspondence counts summed over the views. Throws RecognitionError for
+/// inconsistent input: kInvalidDepth (no view, depth or mask of the wrong type or size), kInvalidGeometry
+/// (positions, indices, a non-orthonormal rotation), kInvalidOptions.
 VecX fitShapeToDepthViews(const VecX& positions, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
                           const std::vector<DepthView>& views, const ShapeFitOptions& options = {},
                           ShapeFitReport* report = nullptr);
@@ -101,7 +103,7 @@ VecX fitShapeToDepthViews(const VecX& positions, const std::vector<vision::Trian
 /// a registered depth image (CV_32FC1 [m], NaN or <= 0 = none) inside `mask` (CV_8UC1, != 0 = textile;
 /// both of the intrinsics' size). `fixed_vertex` (>= 0) stays where it is. Returns the fitted positions;
 /// the input is returned unchanged (report->applied = false) when fewer than max(10, n / 10) depth
-/// correspondences are found (n vertices). Throws std::invalid_argument for inconsistent input (sizes, types, bad indices).
+/// correspondences are found (n vertices). Throws RecognitionError as fitShapeToDepthViews().
 VecX fitShapeToDepth(const VecX& positions_camera, const std::vector<vision::Triangle>& triangles, Index fixed_vertex,
                      const cv::Mat& depth, const cv::Mat& mask, const vision::PinholeIntrinsics& intrinsics,
                      const ShapeFitOptions& options = {}, ShapeFitReport* report = nullptr);

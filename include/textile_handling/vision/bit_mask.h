@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "textile_handling/vision/vision_errors.h"
+
 namespace textile_handling {
 namespace vision {
 
@@ -46,7 +48,7 @@ class BitMask {
     const std::uint64_t bit = std::uint64_t{1} << (x & 63);
     w = value ? (w | bit) : (w & ~bit);
   }
-  bool at(int x, int y) const;  ///< bounds-checked get(); throws std::out_of_range
+  bool at(int x, int y) const;  ///< bounds-checked get(); throws IndexOutOfRangeError (a std::out_of_range)
   /// Sets pixels [x0, x1) of row y (clipped to the window).
   void setSpan(int y, int x0, int x1);
   void clear();

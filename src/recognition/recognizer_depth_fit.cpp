@@ -1,0 +1,289 @@
+// The stages of TextileRecognizer::recognize() after the ranking: the depth fit that chooses the
+// winner's member, azimuth and chirality, the result's fields, the grasp poses (with the shape fit to
+// depth) and the evidence checks (recognizer_stages.h lists the order).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "recognizer_stages.h"
+#include "textile_handling/sim/timing.h"
+#include "textile_handling/vision/shaded_renderer.h"
+
+namespace textile_handling {
+namespace recognition {
+namespace detail {
+
+namespace {
+
+using StoredShape = TextileRecognizer::StoredShape;
+
+// Truncated mean |predicted - measured| depth [m] of shape `x` (stored shape `s`) at base view
+// `base_angle` in image `depth_image`, over the segmented pixels both cover; -1 if fewer than
+// depth_min_pixels pixels compare.
+double depthResidual(const RecognitionRun& run, std::size_t depth_image, const VecX& x, const StoredShape& s,
+                     double base_angle) {
+  const RefinementOptions& ro = run.o.refinement;
+  const std::vector<PreparedImage>& imgs = run.imgs;
+  const PreparedImage& im = imgs[depth_image];
+  const VecX ph = placeInHoldFrame(x, s.held, run.rotationFor(base_angle, depth_image));
+  VecX pc(ph.size());
+  const auto& k = im.g.intrinsics;
+  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
+  for (Eigen::Index v = 0; v < ph.size() / 3; ++v) {
+    const Vec3 p = im.g.holdToCamera(ph.segment<3>(3 * v));
+    pc.segment<3>(3 * v) = p;
+    if (!(p.z() > 0.01)) continue;
+    const double u = k.fx * p.x() / p.z() + k.cx, w = k.fy * p.y() / p.z() + k.cy;
+    x0 = std::min(x0, u);
+    x1 = std::max(x1, u);
+    y0 = std::min(y0, w);
+    y1 = std::max(y1, w);
+  }
+  const int ix0 = std::max(0, static_cast<int>(std::floor(x0)) - 2), iy0 = std::max(0, static_cast<int>(std::floor(y0)) - 2);
+  const int ix1 = std::min(k.width - 1, static_cast<int>(std::ceil(x1)) + 2), iy1 = std::min(k.height - 1, static_cast<int>(std::ceil(y1)) + 2);
+  if (ix1 < ix0 || iy1 < iy0) return -1;
+  vision::ShadedRenderOptions rop;
+  rop.intrinsics = vision::PinholeIntrinsics{k.fx, k.fy, k.cx - ix0, k.cy - iy0, ix1 - ix0 + 1, iy1 - iy0 + 1};
+  rop.noise_sigma = 0;
+  rop.render_mask = false;
+  rop.render_depth = true;
+  const vision::ShadedImage img = vision::renderShaded(pc, s.triangles, rop);
+  std::vector<float> diffs;
+  for (int y = 0; y < img.depth.rows; ++y) {
+    const float* pd = img.depth.ptr<float>(y);
+    const float* md = im.depth_m.ptr<float>(y + iy0);
+    const std::uint8_t* mk = im.mask.ptr<std::uint8_t>(y + iy0);
+    for (int x = 0; x < img.depth.cols; ++x)
+      if (mk[x + ix0] && std::isfinite(pd[x]) && std::isfinite(md[x + ix0])) diffs.push_back(std::abs(pd[x] - md[x + ix0]));
+  }
+  if (static_cast<int>(diffs.size()) < ro.depth_min_pixels) return -1;
+  double sum = 0;
+  for (float d : diffs) sum += std::min(static_cast<double>(d), ro.depth_truncation_m);
+  return sum / static_cast<double>(diffs.size());
+}
+
+// Mean best-shift IoU over the images of shape `x` at base view `base` against the canonical masks `wq`.
+double silhouetteScore(const RecognitionRun& run, const std::vector<vision::BitMask>& wq, const vision::CanonicalFrame& frame,
+                       const VecX& x, const StoredShape& s, double base) {
+  const RefinementOptions& ro = run.o.refinement;
+  const std::vector<PreparedImage>& imgs = run.imgs;
+  const std::size_t n = imgs.size();
+  const int R = ro.max_shift_px;
+  double sum = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    sum += vision::bestShiftIou(wq[i], renderFor(ro, x, s, base + imgs[i].relative_view_deg, imgs[i], frame), R, R).score;
+  return sum / static_cast<double>(n);
+}
+
+// One member of the winning class, as stored and (consider_reflections) mirrored front-to-back, at
+// azimuths within depth_yaw_range_deg whose silhouette score stays within depth_score_slack of the
+// member's best: the lowest cost (1 - IoU) + depth_weight_per_m * residual. Updates `f` and returns
+// true with the cost in *cost if some azimuth had a depth residual; false (f unchanged) otherwise.
+bool fitMemberByDepth(const RecognitionRun& run, std::size_t depth_image, const LoadedIndex& wli,
+                      const std::vector<vision::BitMask>& wq, MemberFit& f, double* cost) {
+  const RefinementOptions& ro = run.o.refinement;
+  const auto sp = run.shape(wli.index.hold_points[f.hold_point].simulation_id, wli.index.hold_points[f.hold_point].hold);
+  auto silhouetteAt = [&](const VecX& x, double base) { return silhouetteScore(run, wq, wli.index.frame, x, *sp, base); };
+  const double floor_iou = f.score - ro.depth_score_slack;
+  const double centre0 = f.angle;
+  double m_cost = std::numeric_limits<double>::infinity(), m_res = -1, m_angle = f.angle, m_iou = f.score;
+  bool m_reflected = false;
+  for (int refl = 0; refl < (ro.consider_reflections ? 2 : 1); ++refl) {
+    const VecX x = refl ? reflectAcrossView(sp->positions, sp->held, centre0) : sp->positions;
+    double local_cost = std::numeric_limits<double>::infinity(), local_angle = centre0;
+    auto consider = [&](double a, double iou) {
+      if (iou < floor_iou) return;
+      const double r = depthResidual(run, depth_image, x, *sp, a);
+      if (r < 0) return;
+      const double cost = (1.0 - iou) + ro.depth_weight_per_m * r;
+      if (cost < local_cost - 1e-12) {
+        local_cost = cost;
+        local_angle = a;
+      }
+      if (cost < m_cost - 1e-12) {
+        m_cost = cost;
+        m_res = r;
+        m_angle = wrapDegrees(a);
+        m_iou = iou;
+        m_reflected = refl != 0;
+      }
+    };
+    consider(centre0, refl ? silhouetteAt(x, centre0) : f.score);
+    const int coarse_steps = static_cast<int>(std::floor(ro.depth_yaw_range_deg / ro.depth_yaw_step_deg + 1e-9));
+    for (int j = -coarse_steps; j <= coarse_steps; ++j)
+      if (j != 0) consider(centre0 + j * ro.depth_yaw_step_deg, silhouetteAt(x, centre0 + j * ro.depth_yaw_step_deg));
+    if (ro.depth_yaw_step_deg > ro.step_deg && std::isfinite(local_cost)) {
+      const double c = local_angle;
+      const int fine = static_cast<int>(std::floor(0.5 * ro.depth_yaw_step_deg / ro.step_deg + 1e-9));
+      for (int j = -fine; j <= fine; ++j)
+        if (j != 0) consider(c + j * ro.step_deg, silhouetteAt(x, c + j * ro.step_deg));
+    }
+  }
+  if (m_res < 0) return false;
+  f.depth_residual = m_res;
+  f.angle = m_angle;
+  f.score = m_iou;
+  f.reflected = m_reflected;
+  f.reflection_view = centre0;
+  *cost = m_cost;
+  return true;
+}
+
+}  // namespace
+
+void fitDepth(RecognitionRun& run) {
+  const RefinementOptions& ro = run.o.refinement;
+  const std::vector<PreparedImage>& imgs = run.imgs;
+  const std::size_t n = imgs.size();
+  RecognitionResult& res = run.res;
+  // Depth: choose among the winner's near-best members by the fit of predicted to measured depth.
+  Candidate& win = run.cands.front();
+  const LoadedIndex& wli = *run.coarse[win.coarse].li;
+  std::size_t depth_image = n;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!imgs[i].depth_m.empty()) {
+      depth_image = i;
+      break;
+    }
+  auto& wfits = run.fits[win.coarse];
+  const auto& wq = run.canonical(wli.index.frame);
+  if (!wfits.empty() && depth_image < n && ro.use_depth) {
+    const double top = wfits[win.member].score;
+    std::size_t best = wfits.size();
+    double best_cost = std::numeric_limits<double>::infinity();
+    int evaluated = 0;
+    for (std::size_t k = 0; k < wfits.size(); ++k) {
+      MemberFit& f = wfits[k];
+      if (f.score < top - ro.depth_member_slack) continue;
+      double m_cost = 0;
+      if (!fitMemberByDepth(run, depth_image, wli, wq, f, &m_cost)) continue;
+      ++evaluated;
+      if (m_cost < best_cost) {
+        best_cost = m_cost;
+        best = k;
+      }
+    }
+    if (best < wfits.size()) {
+      res.depth_decided = ro.consider_reflections || evaluated >= 2;
+      win.member = best;
+      const MemberFit& f = wfits[best];
+      const db::IndexedHoldPoint& ih = wli.index.hold_points[f.hold_point];
+      win.h.hold_point = ih.hold;
+      win.h.lattice_i = ih.lattice_i;
+      win.h.lattice_j = ih.lattice_j;
+      win.h.member_source = ih.source;
+      win.h.simulation_id = ih.simulation_id;
+      win.h.view_angle_deg = f.angle;
+      win.h.score = f.score;
+      win.h.depth_residual_m = f.depth_residual;
+      win.h.reflected = f.reflected;
+      win.h.reflection_view_deg = f.reflection_view;
+    }
+  } else if (depth_image < n && ro.use_depth) {
+    const auto sp = run.shape(win.h.simulation_id, win.h.hold_point);
+    win.h.depth_residual_m = depthResidual(run, depth_image, sp->positions, *sp, win.h.view_angle_deg);
+  }
+  res.refine_ms = msSince(run.t_refine);
+}
+
+void assembleResult(RecognitionRun& run) {
+  const std::vector<PreparedImage>& imgs = run.imgs;
+  const std::size_t n = imgs.size();
+  const std::vector<Candidate>& cands = run.cands;
+  RecognitionResult& res = run.res;
+  const HoldCandidate& w = cands.front().h;
+  res.textile_id = w.textile_id;
+  res.textile_name = w.textile_name;
+  res.hold_point = w.hold_point;
+  res.canonical_hold_point = w.canonical_hold;
+  res.equivalent_hold_points = w.equivalent_hold_points;
+  res.lattice_i = w.lattice_i;
+  res.lattice_j = w.lattice_j;
+  res.simulation_id = w.simulation_id;
+  res.view_angle_deg = w.view_angle_deg;
+  res.camera_azimuth_deg = imgs[0].g.camera_azimuth_deg;
+  res.rotation_deg = signedWrap(run.rotationFor(w.view_angle_deg, 0));
+  res.score = w.score;
+  res.depth_residual_m = w.depth_residual_m;
+  res.reflected = w.reflected;
+  res.reflection_view_deg = w.reflection_view_deg;
+  res.coarse_margin = run.coarse_margin_all;
+  res.confidence = run.confidence;
+  for (std::size_t k = 0; k < cands.size() && static_cast<int>(k) < run.o.match.top_k; ++k) res.top_k.push_back(cands[k].h);
+
+  // Front/back ambiguity: one view direction explains a shape and its mirror image across the vertical
+  // plane perpendicular to the view equally well (orthographic silhouettes are identical). A second view
+  // direction or a depth decision resolves it.
+  {
+    bool second_direction = false;
+    for (std::size_t i = 1; i < n; ++i) {
+      const double r = std::fmod(std::abs(imgs[i].relative_view_deg), 180.0);
+      if (std::min(r, 180.0 - r) > 5.0) second_direction = true;
+    }
+    res.front_back_ambiguous = !second_direction && !res.depth_decided;
+  }
+}
+
+void addGraspPoses(RecognitionRun& run) {
+  const RecognizerOptions& o = run.o;
+  const std::vector<PreparedImage>& imgs = run.imgs;
+  const std::size_t n = imgs.size();
+  RecognitionResult& res = run.res;
+  const HoldCandidate& w = run.cands.front().h;
+  const LoadedIndex& wli = *run.coarse[run.cands.front().coarse].li;
+  // Grasp poses and the matched silhouette.
+  const auto sp = run.shape(w.simulation_id, w.hold_point);
+  try {
+    const VecX x = w.reflected ? reflectAcrossView(sp->positions, sp->held, w.reflection_view_deg) : sp->positions;
+    const double rot0 = run.rotationFor(w.view_angle_deg, 0);
+    // The images with depth (the first one's hold frame is the common frame of the fit).
+    std::vector<DepthView> views;
+    if (o.shape_fit.enabled && !imgs[0].depth_m.empty()) {
+      for (std::size_t i = 0; i < n; ++i) {
+        if (imgs[i].depth_m.empty()) continue;
+        // Image i sees the shape turned by rotationFor(view, i) about the hold axis, the common frame by
+        // rot0: a point p of the common frame is R_i Rz(rot_i - rot0) p + hold_i in camera i.
+        DepthView v;
+        v.depth = imgs[i].depth_m;
+        v.mask = imgs[i].mask;
+        v.intrinsics = imgs[i].g.intrinsics;
+        v.rotation = imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
+        v.translation = imgs[i].g.hold_camera;
+        views.push_back(v);
+        if (!o.shape_fit.fuse_views) break;
+      }
+    }
+    if (!views.empty()) {
+      // Deform the matched shape onto the measured surfaces, then read the poses from it (in H already:
+      // rotation 0 about the held particle, which the fit keeps at the hold point).
+      const HoldGeometry& g0 = imgs[0].g;
+      const VecX ph = placeInHoldFrame(x, sp->held, rot0);
+      const VecX xh = fitShapeToDepthViews(ph, sp->triangles, sp->held, views, o.shape_fit, &res.shape_fit);
+      res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, xh, sp->held, 0.0, g0, o.grasp);
+    } else {
+      res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);
+    }
+    res.frame = wli.index.frame;
+    res.query_masks = run.canonical(wli.index.frame);
+    res.matched_mask = renderFor(o.refinement, x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);
+  } catch (const RecognitionError& e) {
+    // The stored shape or mesh is inconsistent (options were validated): the database is at fault.
+    fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
+  } catch (const std::invalid_argument& e) {  // vision::VisionError from the renderer
+    fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
+  }
+}
+
+void checkResultEvidence(RecognitionRun& run) {
+  RecognitionResult& res = run.res;
+  res.colour_fraction = run.imgs[0].colour_fraction;
+  res.coverage = silhouetteCoverage(res.query_masks.front(), res.matched_mask, run.o.refinement.max_shift_px);
+  checkEvidence(res.score, res.coverage, run.o.evidence);
+  res.skipped_views = run.st.skipped.size();
+  res.warnings = run.st.result_warnings;
+  res.total_ms = msSince(run.t_start);
+}
+
+}  // namespace detail
+}  // namespace recognition
+}  // namespace textile_handling
