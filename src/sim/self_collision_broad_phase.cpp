@@ -13,7 +13,6 @@
 
 #include <Eigen/SVD>
 
-#include "textile_handling/sim/timing.h"
 #include "collision_primitives.h"
 #include "self_collision_parallel.h"
 

@@ -10,9 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "textile_handling/sim/timing.h"
 #include "collision_primitives.h"
-#include "self_collision_parallel.h"
 
 namespace textile_handling {
 

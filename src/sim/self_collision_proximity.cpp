@@ -15,7 +15,6 @@
 #include <utility>
 #include <vector>
 
-#include "textile_handling/sim/timing.h"
 #include "collision_primitives.h"
 #include "self_collision_parallel.h"
 
