@@ -1,11 +1,13 @@
 // Independent intersection checker: exact triangle-triangle tests (Devillers-Guigue) over all pairs of
 // triangles that share no vertex, with a uniform AABB grid as broad phase. Deliberately shares no
 // code with the self-collision pass except the exact predicates.
+#include "textile_handling/sim/collision_check.h"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
 
-#include "textile_handling/sim/collision.h"
+#include "textile_handling/sim/collision_geometry.h"
 
 #ifdef _OPENMP
 #include <omp.h>

@@ -1,10 +1,12 @@
 // Obstacle pass (planes, boxes, spheres) and the pass chain. See docs/collision.md.
+#include "textile_handling/sim/collision_obstacles.h"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
 
-#include "textile_handling/sim/collision.h"
+#include "textile_handling/sim/cloth_triangles.h"  // pinnedMask
 
 namespace textile_handling {
 

@@ -7,7 +7,7 @@
 #include <ostream>
 #include <stdexcept>
 
-#include "textile_handling/sim/collision.h"
+#include "textile_handling/sim/collision_obstacles.h"
 #include "textile_handling/sim/textile_geometry.h"
 
 namespace textile_handling {

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <memory>
 #include <string>
 #include <map>
@@ -784,6 +785,33 @@ TEST(PinnedParticles, MaskFromPinnedNodesAndSizeChecks) {
   EXPECT_THROW(pass.apply(VecX::Zero(6), x, v), std::invalid_argument);
   EXPECT_EQ(selfCollisionVersionFromString("v2"), SelfCollisionVersion::kEdge);
   EXPECT_THROW(selfCollisionVersionFromString("v4"), std::invalid_argument);
+}
+
+TEST(SelfCollisionOptionsCheck, EachBadFieldIsNamedWithItsRange) {
+  const ClothTriangles t = ClothTriangles::fromTopology(topologyFromCells(block(0, 0, 2, 2)));
+  SelfCollisionOptions bad;
+  bad.restitution = 1.5;
+  bad.thickness_factor = 0.4;
+  bad.proximity_iterations = 0;
+  std::string message;
+  try {
+    SelfCollisionPass pass(t, {}, bad);
+  } catch (const std::invalid_argument& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find("SelfCollisionPass"), std::string::npos) << message;
+  EXPECT_NE(message.find("restitution = 1.5, accepted: [0, 1]"), std::string::npos) << message;
+  EXPECT_NE(message.find("thickness_factor = 0.4, accepted: (0, 0.35)"), std::string::npos) << message;
+  EXPECT_NE(message.find("proximity_iterations = 0, accepted: >= 1"), std::string::npos) << message;
+  // Only the bad fields are named.
+  EXPECT_EQ(message.find("d_min"), std::string::npos) << message;
+  EXPECT_EQ(message.find("proximity_friction"), std::string::npos) << message;
+  // NaN fails the range checks as before.
+  SelfCollisionOptions nan_friction;
+  nan_friction.proximity_friction = std::numeric_limits<Real>::quiet_NaN();
+  EXPECT_THROW(validateSelfCollisionOptions(nan_friction), std::invalid_argument);
+  EXPECT_NO_THROW(validateSelfCollisionOptions(SelfCollisionOptions{}));
+  EXPECT_NO_THROW(validateSelfCollisionOptions(SelfCollisionOptions::thesisLiteral()));
 }
 
 // ---- obstacles ---------------------------------------------------------------------------------------
