@@ -207,13 +207,12 @@ int benchMain(int argc, char** argv) {
       {"choi_ko semi_implicit/error fast", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
          useFastSolverSettings(s.settings);
-         s.model = "choi_ko";
+         s.model = settlingModelSpec("choi_ko", 4.0);
          s.settings.max_time = 30.0;
        }},
       {"choi_ko semi_implicit/fixed 10 ms, no damping", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kFixed, 0.01)(s);
-         s.model = "choi_ko";
-         s.choi_ko_options.settle_damping = 0;
+         s.model = settlingModelSpec("choi_ko", 0.0);
          s.settings.max_time = 30.0;
        }},
   };
@@ -225,7 +224,7 @@ int benchMain(int argc, char** argv) {
     if (d >= 0.0099) return true;
     DrapeSceneSpec probe = benchmarkTowelSpec(d, "corner_ul");
     c.apply(probe);
-    return probe.model == "particle_kes" && !probe.self_collision;
+    return probe.model.name == "particle_kes" && !probe.self_collision;
   };
   std::vector<Row> rows;
   std::cout << "drape_bench: " << omp_get_max_threads() << " threads, wall cap " << max_wall << " s per run\n";
@@ -243,12 +242,12 @@ int benchMain(int argc, char** argv) {
           if (needed || !selected(c, d)) continue;
           DrapeSceneSpec probe = benchmarkTowelSpec(d, hold);
           c.apply(probe);
-          needed = (probe.model == key.first && probe.self_collision == collide) ||
-                   (probe.model != "particle_kes" && key.first == "particle_kes" && !collide);
+          needed = (probe.model.name == key.first && probe.self_collision == collide) ||
+                   (probe.model.name != "particle_kes" && key.first == "particle_kes" && !collide);
         }
         if (!needed) continue;
         DrapeSceneSpec ref_spec = benchmarkTowelSpec(d, hold);
-        ref_spec.model = key.first;
+        ref_spec.model = settlingModelSpec(key.first, 4.0);
         ref_spec.self_collision = collide;
         // The Choi-Ko towel settles slowly (about 20 s simulated at d = 1 cm; docs/choi_ko.md).
         if (key.first == "choi_ko") ref_spec.settings.max_time = 30.0;
@@ -274,9 +273,9 @@ int benchMain(int argc, char** argv) {
         spec.settings.max_wall_time = max_wall;
         const Run run = simulate(spec);
         const RunResult& r = run.result;
-        const Run& ref = refs[{spec.model, spec.self_collision}];
+        const Run& ref = refs[{spec.model.name, spec.self_collision}];
         Row row;
-        row.model = spec.model;
+        row.model = spec.model.name;
         row.integrator = toString(spec.settings.integrator);
         row.policy = toString(spec.settings.policy);
         row.solver = solverLabel(spec);
@@ -306,7 +305,7 @@ int benchMain(int argc, char** argv) {
         if (!ref.result.rest_reached) row.note += std::string(row.note.empty() ? "" : "; ") + "reference not at rest";
         if (!r.diverged) {
           shapeError(run.x, ref.x, &row.mean_err, &row.max_err);
-          if (spec.model != "particle_kes") {
+          if (spec.model.name != "particle_kes") {
             Real worst = 0;
             shapeError(run.x, refs[{"particle_kes", false}].x, &row.diff_from_particle, &worst);
           }
@@ -354,9 +353,9 @@ int benchMain(int argc, char** argv) {
       for (const std::string model : {"choi_ko", "particle_kes", "particle_kes/definite_fix"}) {
         for (bool damping : {false, true}) {
           StabilityRunSpec run;
-          run.model = model == "choi_ko" ? "choi_ko" : "particle_kes";
+          run.model = ClothModelSpec(model == "choi_ko" ? "choi_ko" : "particle_kes");
           run.damping = damping;
-          if (model == "particle_kes/definite_fix") run.particle_options.jacobian = JacobianMode::kDefiniteFix;
+          if (model == "particle_kes/definite_fix") run.model.set("jacobian", "definite_fix");
           const auto rows = scanStability(scene, run, dts, model);
           std::printf("stability %-26s %-18s damping=%d largest stable dt = %.3f s\n", model.c_str(),
                       toString(scene_kind).c_str(), damping, largestStableDt(rows));

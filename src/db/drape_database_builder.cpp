@@ -43,11 +43,14 @@ std::string clockText(double s) {
 // (name, value) of every numeric setting, in a fixed order: the parameter text and the finiteness check.
 std::vector<std::pair<std::string, double>> numericSettings(const DrapeBuildConfig& c) {
   const SimulationSettings& s = c.settings;
-  const ParticleModelOptions& m = c.model_options;
-  return {
+  std::vector<std::pair<std::string, double>> out = {
       {"spacing_m", c.spacing},
       {"hold_height_m", c.hold_height},
-      {"model_options.settle_damping_per_s", m.settle_damping},
+  };
+  // The model's numbers sit where the particle model's settle damping always stood, so that the
+  // parameter texts of existing particle_kes databases do not change.
+  for (const auto& n : ClothModelRegistry::instance().fingerprint(c.model).numbers) out.push_back(n);
+  std::vector<std::pair<std::string, double>> rest = {
       {"simulation.cg_max_iterations", s.solver.max_iterations},
       {"simulation.cg_tolerance", s.solver.relative_tolerance},
       {"simulation.cg_accept_tolerance", s.solver.accept_tolerance},
@@ -78,6 +81,8 @@ std::vector<std::pair<std::string, double>> numericSettings(const DrapeBuildConf
       {"projection.fx", c.projection.intrinsics.fx},
       {"projection.fy", c.projection.intrinsics.fy},
   };
+  out.insert(out.end(), rest.begin(), rest.end());
+  return out;
 }
 
 struct Mesh {
@@ -98,12 +103,7 @@ SimulationSettings DrapeBuildConfig::defaultSimulationSettings() {
   return s;
 }
 
-ParticleModelOptions DrapeBuildConfig::defaultModelOptions() {
-  ParticleModelOptions o;
-  o.settle_damping = 4.0;
-  o.jacobian = JacobianMode::kDefiniteFix;
-  return o;
-}
+ClothModelSpec DrapeBuildConfig::defaultModelSpec(const std::string& model) { return settlingModelSpec(model, 4.0); }
 
 std::vector<std::string> DrapeDatabaseBuilder::parameterTexts(const DrapeBuildConfig& c) {
   if (!c.bracket_hold_points) return {parametersText(c)};
@@ -150,7 +150,8 @@ std::vector<PlannedHoldPoint> DrapeDatabaseBuilder::passPlan(int corner) const {
 }
 
 std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int bracket_corner) {
-  std::string t = "format: 1\nmodel: " + c.model + "\n";
+  const ClothModelFingerprint model = ClothModelRegistry::instance().fingerprint(c.model);
+  std::string t = "format: 1\nmodel: " + c.model.name + "\n";
   t += "integrator: " + toString(c.settings.integrator) + "\n";
   t += "policy: " + toString(c.settings.policy) + "\n";
   t += "linear_solver: " + toString(c.settings.solver.kind) + "\n";
@@ -159,9 +160,7 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   // rows computed with the old ones and mix the two.
   t += "preconditioner: " + toString(c.settings.solver.preconditioner) + "\n";
   t += std::string("cg_warm_start: ") + (c.settings.solver.warm_start ? "true" : "false") + "\n";
-  t += std::string("jacobian: ") + (c.model_options.jacobian == JacobianMode::kExact ? "exact" : "definite_fix") + "\n";
-  t += std::string("forces: ") + (c.model_options.gravity ? "gravity " : "") + (c.model_options.drag ? "drag " : "") +
-       (c.model_options.shear ? "shear " : "") + (c.model_options.bending ? "bending" : "") + "\n";
+  for (const std::string& line : model.lines) t += line + "\n";
   t += std::string("require_rest: ") + (c.require_rest ? "true" : "false") + "\n";
   t += std::string("retry_with_smaller_steps: ") + (c.retry_with_smaller_steps ? "true" : "false") + "\n";
   t += std::string("projection: ") +
@@ -187,7 +186,6 @@ DrapeSceneSpec DrapeDatabaseBuilder::sceneSpec(const DrapeBuildConfig& c, const 
   s.hold = {h};
   s.hold_position = Vec3(0, 0, c.hold_height);
   s.model = c.model;
-  s.model_options = c.model_options;
   s.settings = c.settings;
   s.settings.trajectory_every = 0;
   s.self_collision = c.self_collision;
@@ -271,6 +269,11 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
   if (c.textile.name.empty()) throw InvalidInputError("build: textile has no name");
   if (!validateTextileOutline(c.textile, &err)) throw InvalidInputError("build: textile '" + c.textile.name + "': " + err);
   if (!c.material.validate(&err)) throw InvalidInputError("build: material: " + err);
+  try {
+    ClothModelRegistry::instance().validate(c.model);
+  } catch (const ClothModelError& e) {
+    throw InvalidInputError(std::string("build: ") + e.what());
+  }
   for (const auto& [name, value] : numericSettings(c))
     if (!std::isfinite(value)) throw InvalidInputError("build: setting " + name + " is not finite");
   if (!(c.spacing > 0)) throw InvalidInputError("build: particle spacing must be > 0");
@@ -382,7 +385,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
     r.lattice_j = h.lattice_j;
     r.source = h.mirror;
     r.source_index = h.mirror == MirrorKind::kIdentity ? -1 : h.source;
-    r.model = c.model;
+    r.model = c.model.name;
     r.integrator = toString(c.settings.integrator);
     r.spacing = c.spacing;
     r.parameters = params;

@@ -72,11 +72,23 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
     floor.point = Vec3(0, 0, floor_z);
     obstacles_.planes.push_back(floor);
   }
-  double damping = model_options_.settle_damping;
+  // simulate_drape's cloth model: any registered model, its options as "key=value ..." text.
+  std::string model = "particle_kes", model_options;
+  pnh.param<std::string>("model", model, model);
+  pnh.param<std::string>("model_options", model_options, model_options);
+  double damping = 0;
   pnh.param("settle_damping_per_s", damping, damping);
   if (!std::isfinite(damping) || damping < 0)
     throw std::runtime_error("parameter ~settle_damping_per_s must be finite and >= 0");
-  model_options_.settle_damping = damping;
+  try {
+    model_spec_ = parseClothModelSpecText(model + " " + model_options);
+    if (ClothModelRegistry::instance().find(model_spec_.name).hasOptionKey("settle_damping_per_s") &&
+        !model_spec_.options.count("settle_damping_per_s"))
+      model_spec_.set("settle_damping_per_s", damping);
+    ClothModelRegistry::instance().validate(model_spec_);
+  } catch (const ClothModelError& e) {
+    throw std::runtime_error(std::string("parameter ~model / ~model_options: ") + e.what());
+  }
   std::vector<double> hold;
   if (pnh.getParam("hold_position_m", hold)) {
     if (hold.size() != 3 || !std::isfinite(hold[0]) || !std::isfinite(hold[1]) || !std::isfinite(hold[2]))
@@ -231,6 +243,7 @@ bool DrapeSimulatorNode::registerTextile(RegisterTextile::Request& req, Register
   r.material_yaml = req.material_yaml;
   r.hold_point_spacing = req.hold_point_spacing_m;
   r.model = req.model;
+  r.model_options = req.model_options;
   try {
     const registry::QueuedBuild q = registry_->registerTextile(r);
     res.success = true;
@@ -254,6 +267,7 @@ bool DrapeSimulatorNode::resimulate(Resimulate::Request& req, Resimulate::Respon
   r.material_yaml = req.material_yaml;
   r.spacing = req.spacing_m;
   r.model = req.model;
+  r.model_options = req.model_options;
   try {
     const registry::QueuedBuild q = registry_->resimulate(r);
     res.success = true;
@@ -378,7 +392,21 @@ bool DrapeSimulatorNode::simulateDrape(SimulateDrape::Request& req, SimulateDrap
   spec.hold = {hold};
   spec.hold_position = hold_position_;
   spec.settings = settings_;
-  spec.model_options = model_options_;
+  spec.model = model_spec_;
+  if (!req.model.empty() || !req.model_options.empty()) {
+    try {
+      // A request's model starts from its own defaults; its options are added to those of the node's
+      // model when it names no model.
+      ClothModelSpec requested = req.model.empty() ? model_spec_ : ClothModelSpec(req.model);
+      if (!req.model_options.empty())
+        for (const auto& [key, value] : parseClothModelSpecText(requested.name + " " + req.model_options).options)
+          requested.set(key, value);
+      ClothModelRegistry::instance().validate(requested);
+      spec.model = requested;
+    } catch (const ClothModelError& e) {
+      return reject(e.what());
+    }
+  }
   spec.self_collision = self_collision_;
   spec.collision = collision_;
   spec.obstacles = obstacles_;

@@ -41,7 +41,7 @@ class DrapeSimulatorNode {
   Real default_spacing_ = 0.02;
   std::string default_integrator_ = "semi_implicit";
   SimulationSettings settings_;
-  ParticleModelOptions model_options_;
+  ClothModelSpec model_spec_;  ///< simulate_drape's model and options (~model, ~model_options, ~settle_damping_per_s)
   Vec3 hold_position_ = Vec3(0, 0, 1.0);
   bool self_collision_ = true;
   SelfCollisionOptions collision_;

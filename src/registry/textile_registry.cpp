@@ -94,14 +94,36 @@ int TextileRegistry::planHoldPoints(const db::DrapeBuildConfig& config) {
   return n;
 }
 
-std::string TextileRegistry::checkedModel(const std::string& model) const {
-  std::string known;
-  for (const auto& m : options_.models) {
-    if (m == model) return model;
-    known += (known.empty() ? "" : ", ") + m;
+ClothModelSpec TextileRegistry::checkedModel(const std::string& model_text) const {
+  try {
+    // "name" or "name key=value ..." (a request's model and model_options, or a staged generation's).
+    const ClothModelSpec request = parseClothModelSpecText(model_text);
+    if (!options_.models.empty() &&
+        std::find(options_.models.begin(), options_.models.end(), request.name) == options_.models.end()) {
+      std::string known;
+      for (const auto& m : options_.models) known += (known.empty() ? "" : ", ") + m;
+      throw InvalidInputError("unknown model '" + request.name + "' (available: " + known + ")");
+    }
+    // The template's options when it builds this model already, the build defaults otherwise; then the
+    // request's own option values.
+    ClothModelSpec spec = request.name == options_.build.model.name ? options_.build.model
+                                                                     : db::DrapeBuildConfig::defaultModelSpec(request.name);
+    for (const auto& [key, value] : request.options) spec.set(key, value);
+    ClothModelRegistry::instance().validate(spec);
+    return spec;
+  } catch (const ClothModelError& e) {
+    throw InvalidInputError(e.what());
   }
-  throw InvalidInputError("unknown model '" + model + "' (available: " + known + ")");
 }
+
+namespace {
+// The request's model as one text ("name key=value ..."); empty when the request names no model.
+std::string requestModelText(const std::string& model, const std::string& model_options) {
+  if (model.empty() && !model_options.empty())
+    throw InvalidInputError("model_options given without a model name");
+  return model_options.empty() ? model : model + " " + model_options;
+}
+}  // namespace
 
 QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   checkName(r.name, "name");
@@ -121,7 +143,8 @@ QueuedBuild TextileRegistry::registerTextile(const TextileRegistration& r) {
   job.config.textile = outline;
   job.config.material = material;
   if (r.hold_point_spacing > 0) job.config.lattice_spacing = r.hold_point_spacing;
-  if (!r.model.empty()) job.config.model = checkedModel(r.model);
+  const std::string model_text = requestModelText(r.model, r.model_options);
+  if (!model_text.empty()) job.config.model = checkedModel(model_text);
   const int planned = planHoldPoints(job.config);  // throws before anything is stored
   job.textile_id = db_->addTextile(outline, material);  // refuses a name taken meanwhile
   if (on_changed_) on_changed_(job.textile_id);
@@ -138,11 +161,12 @@ QueuedBuild TextileRegistry::resimulate(const ResimulationRequest& r) {
   std::string error;
   if (!job.config.material.validate(&error)) throw InvalidInputError("material: " + error);
   if (r.spacing > 0) job.config.spacing = r.spacing;
-  if (!r.model.empty()) job.config.model = checkedModel(r.model);
+  const std::string model_text = requestModelText(r.model, r.model_options);
+  if (!model_text.empty()) job.config.model = checkedModel(model_text);
   job.staged = true;
   job.stage_new = true;
   job.request_spacing = r.spacing;
-  job.request_model = r.model;
+  job.request_model = model_text;
   const int planned = planHoldPoints(job.config);
   QueuedBuild q = enqueue(std::move(job));
   q.hold_points = planned;

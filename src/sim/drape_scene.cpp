@@ -34,7 +34,7 @@ Vec2 resolveHold(const TextileOutline& t, const HoldPoint& h) {
     if (np.name == h.name) return np.position;
   std::string known;
   for (const auto& np : t.named_points) known += (known.empty() ? "" : ", ") + np.name;
-  throw std::invalid_argument("textile '" + t.name + "' has no named point '" + h.name + "' (known: " + known + ")");
+  throw SceneError("textile '" + t.name + "' has no named point '" + h.name + "' (known: " + known + ")");
 }
 
 // Hold positions given as coordinates must lie on the textile (named points are checked with the
@@ -44,14 +44,15 @@ void checkHoldPointsOnTextile(const DrapeSceneSpec& spec, const std::vector<Vec2
     const HoldPoint& h = spec.hold[k];
     if (!h.name.empty()) continue;
     if (!h.position.allFinite() || !pointInPolygon(outline, h.position, kHoldTolerance))
-      throw std::invalid_argument("hold point " + std::to_string(k) + " (" + h.label() + ") lies outside the outline of textile '" +
+      throw SceneError("hold point " + std::to_string(k) + " (" + h.label() + ") lies outside the outline of textile '" +
                                   spec.textile.name + "'");
   }
 }
 
 // The scene's memory estimate against its budget, before the model and the solver allocate.
 void checkSceneMemory(const DrapeSceneSpec& spec, Index nodes) {
-  const SimulationMemoryInput in = memoryInput(nodes, spec.settings, spec.self_collision);
+  SimulationMemoryInput in = memoryInput(nodes, spec.settings, spec.self_collision);
+  in.dofs_per_node = ClothModelRegistry::instance().find(spec.model.name).dofs_per_node;
   const std::string what = "the scene (textile '" + spec.textile.name + "', " + std::to_string(nodes) +
                            " particles at spacing " + std::to_string(spec.spacing) + " m)";
   checkMemoryBudget(estimateSimulationBytes(in), spec.settings.memory_budget_bytes, what);
@@ -59,38 +60,34 @@ void checkSceneMemory(const DrapeSceneSpec& spec, Index nodes) {
 
 }  // namespace
 
-bool isClothModelName(const std::string& name) { return name == "particle_kes" || name == "choi_ko"; }
+bool isClothModelName(const std::string& name) { return ClothModelRegistry::instance().contains(name); }
 
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
-  if (!isClothModelName(spec.model))
-    throw std::invalid_argument("unknown cloth model '" + spec.model + "' (available: particle_kes, choi_ko)");
+  const ClothModelRegistry& models = ClothModelRegistry::instance();
+  const std::any model_options = models.parseOptions(spec.model);  // throws ClothModelError naming the key
   if (spec.hold.empty() && spec.pinned_regions.empty())
-    throw std::invalid_argument("scene holds nothing: give at least one hold point or pinned region");
-  if (!spec.hold_position.allFinite()) throw std::invalid_argument("hold position is not finite");
+    throw SceneError("scene holds nothing: give at least one hold point or pinned region");
+  if (!spec.hold_position.allFinite()) throw SceneError("hold position is not finite");
   if (spec.lift_times.size() != spec.lift_offsets.size())
-    throw std::invalid_argument("lift: times and offsets differ in length");
+    throw SceneError("lift: times and offsets differ in length");
   for (size_t k = 0; k < spec.lift_times.size(); ++k) {
     if (!std::isfinite(spec.lift_times[k]) || !spec.lift_offsets[k].allFinite())
-      throw std::invalid_argument("lift: non-finite waypoint");
+      throw SceneError("lift: non-finite waypoint");
     if (k > 0 && !(spec.lift_times[k] > spec.lift_times[k - 1]))
-      throw std::invalid_argument("lift: waypoint times must increase");
+      throw SceneError("lift: waypoint times must increase");
   }
   std::string error;
-  if (!validateTextileOutline(spec.textile, &error)) throw std::invalid_argument("textile: " + error);
-  if (!spec.material.validate(&error)) throw std::invalid_argument("material: " + error);
+  if (!validateTextileOutline(spec.textile, &error)) throw SceneError("textile: " + error);
+  if (!spec.material.validate(&error)) throw SceneError("material: " + error);
 
   DrapeScene scene;
   scene.spec = spec;
   scene.grid = ParticleGrid::rasterize(spec.textile, spec.spacing, &error);
-  if (scene.grid.empty()) throw std::invalid_argument("rasterisation failed: " + error);
+  if (scene.grid.empty()) throw SceneError("rasterisation failed: " + error);
   checkHoldPointsOnTextile(spec, scene.grid.polygon());
   checkSceneMemory(spec, scene.grid.numActive());
   ParticleTopology topology = ParticleTopology::fromGrid(scene.grid);
-  std::unique_ptr<ClothModel> model;
-  if (spec.model == "choi_ko")
-    model = std::make_unique<ChoiKoClothModel>(topology, spec.material, spec.choi_ko_options);
-  else
-    model = std::make_unique<ParticleClothModel>(topology, spec.material, spec.model_options);
+  std::unique_ptr<ClothModel> model = models.find(spec.model.name).create(topology, spec.material, model_options);
 
   const Index n = scene.grid.numActive();
   // Shift so that the first held point (or the first region's centre) sits at hold_position.
@@ -103,19 +100,22 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
     ref = Vec2(0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]));
   }
   scene.textile_to_world = spec.hold_position - Vec3(ref.x(), ref.y(), 0);
-  scene.x0.resize(3 * n);
+  // Positions into the position DOFs; a model's further DOFs (sliding coordinates) start at 0.
+  VecX positions(3 * n);
   for (Index r = 0; r < n; ++r) {
     const Vec2 q = scene.grid.activePosition(r);
-    scene.x0.segment<3>(3 * r) = Vec3(q.x(), q.y(), 0) + scene.textile_to_world;
+    positions.segment<3>(3 * r) = Vec3(q.x(), q.y(), 0) + scene.textile_to_world;
   }
-  scene.v0 = VecX::Zero(3 * n);
+  scene.x0 = VecX::Zero(model->numDofs());
+  model->setPositions(positions, scene.x0);
+  scene.v0 = VecX::Zero(model->numDofs());
 
   std::vector<char> pinned(n, 0);
   auto pin = [&](Index p) {
     if (pinned[p]) return;
     pinned[p] = 1;
     scene.pins.nodes.push_back(p);
-    scene.pins.anchors.push_back(scene.x0.segment<3>(3 * p));
+    scene.pins.anchors.push_back(positions.segment<3>(3 * p));
   };
   for (const auto& h : spec.hold) {
     const Index p = scene.grid.nearestActive(resolveHold(spec.textile, h));
@@ -126,7 +126,7 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
     const auto& r = spec.pinned_regions[k];
     const std::string name = "pinned region " + std::to_string(k);
     if (!r.allFinite() || !(r[2] >= r[0]) || !(r[3] >= r[1]))
-      throw std::invalid_argument(name + " must be finite with x0 <= x1 and y0 <= y1");
+      throw SceneError(name + " must be finite with x0 <= x1 and y0 <= y1");
     const Index before = static_cast<Index>(scene.pins.nodes.size());
     for (Index p = 0; p < n; ++p) {
       const Vec2 q = scene.grid.activePosition(p);
@@ -134,7 +134,7 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
       if (q.x() >= r[0] - tol && q.x() <= r[2] + tol && q.y() >= r[1] - tol && q.y() <= r[3] + tol) pin(p);
     }
     if (static_cast<Index>(scene.pins.nodes.size()) == before)
-      throw std::invalid_argument(name + " contains no particle (it lies outside the textile or between particles)");
+      throw SceneError(name + " contains no particle (it lies outside the textile or between particles)");
   }
   if (scene.hold_particle < 0) scene.hold_particle = scene.pins.nodes.front();
   scene.pins.waypoint_times = spec.lift_times;
@@ -155,7 +155,7 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
         !(spec.collision.restitution <= 1) || !(spec.collision.tangential_damping >= 0) ||
         !(spec.collision.tangential_damping <= 1) || !(spec.collision.cell_size_factor > 0) ||
         !std::isfinite(spec.collision.cell_size_factor) || !(spec.collision.barycentric_tolerance >= 0))
-      throw std::invalid_argument("collision: options out of range (see docs/collision.md)");
+      throw SceneError("collision: options out of range (see docs/collision.md)");
     scene.self_collision_pass = std::make_unique<SelfCollisionPass>(topology, scene.pins, spec.collision);
     // Persistent contact: the proximity stage's contact forces enter the next implicit solve, so a
     // textile resting on itself is a fixed point (docs/collision.md, "Persistent contact").
@@ -164,10 +164,17 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   if (scene.obstacle_pass && scene.self_collision_pass)
     scene.pass_chain = std::make_unique<PostStepPassChain>(
         std::vector<PostStepPass*>{scene.obstacle_pass.get(), scene.self_collision_pass.get()});
+  if (scene.model->dofsPerNode() != 3) {
+    PostStepPass* passes = scene.pass_chain ? static_cast<PostStepPass*>(scene.pass_chain.get())
+                           : scene.obstacle_pass ? static_cast<PostStepPass*>(scene.obstacle_pass.get())
+                                                 : static_cast<PostStepPass*>(scene.self_collision_pass.get());
+    if (passes) scene.position_view = std::make_unique<PositionViewPass>(*passes, *scene.model);
+  }
   return scene;
 }
 
 PostStepPass* DrapeScene::postStepPass() const {
+  if (position_view) return position_view.get();
   if (pass_chain) return pass_chain.get();
   if (obstacle_pass) return obstacle_pass.get();
   return self_collision_pass.get();
@@ -177,10 +184,10 @@ ClothTriangles DrapeScene::triangles() const {
   return ClothTriangles::fromTopology(ParticleTopology::fromGrid(grid));
 }
 
-Real hangingDepth(const DrapeScene& scene, const VecX& x) {
-  const Real top = x[3 * scene.hold_particle + 2];
+Real hangingDepth(const DrapeScene& scene, const VecX& positions) {
+  const Real top = positions[3 * scene.hold_particle + 2];
   Real lowest = top;
-  for (Index r = 0; r < scene.model->numNodes(); ++r) lowest = std::min(lowest, x[3 * r + 2]);
+  for (Index r = 0; r < scene.model->numNodes(); ++r) lowest = std::min(lowest, positions[3 * r + 2]);
   return top - lowest;
 }
 
@@ -192,7 +199,7 @@ namespace {
 // textile_geometry.h): hold points, lift waypoints, pinned regions, obstacles of each kind.
 constexpr std::size_t kMaxSceneListLength = 256;
 
-[[noreturn]] void fail(const std::string& message) { throw std::invalid_argument("scene: " + message); }
+[[noreturn]] void fail(const std::string& message) { throw SceneError("scene: " + message); }
 
 // Keys and names from the file are quoted at most this long in messages (a key path holds a few
 // names of at most kMaxTextileNameLength characters).
@@ -383,52 +390,24 @@ void parseHoldSection(const YAML::Node& h, bool has_regions, DrapeSceneSpec& s) 
   }
 }
 
-void parseChoiKoKeys(const YAML::Node& m, DrapeSceneSpec& s) {
-  // The switches of the particle model apply to the Choi-Ko model too, plus its own keys (docs/choi_ko.md).
-  ChoiKoOptions& ck = s.choi_ko_options;
-  ck.gravity = s.model_options.gravity;
-  ck.drag = s.model_options.drag;
-  ck.shear = s.model_options.shear;
-  ck.bending = s.model_options.bending;
-  ck.settle_damping = m["settle_damping_per_s"] ? s.model_options.settle_damping : ck.settle_damping;
-  if (m["bending_version"]) {
-    const std::string b = getString(m["bending_version"], "model.bending_version");
-    if (b == "beam") ck.bending_version = ChoiKoBending::kBeam;
-    else if (b == "plate") ck.bending_version = ChoiKoBending::kPlate;
-    else fail("'model.bending_version' must be beam or plate");
-  }
-  if (m["bending_jacobian"]) {
-    const std::string j = getString(m["bending_jacobian"], "model.bending_jacobian");
-    if (j == "secant") ck.bending_jacobian = choi_ko::BendingJacobian::kSecant;
-    else if (j == "drop_negative") ck.bending_jacobian = choi_ko::BendingJacobian::kDropNegative;
-    else if (j == "exact") ck.bending_jacobian = choi_ko::BendingJacobian::kExact;
-    else fail("'model.bending_jacobian' must be secant, drop_negative or exact");
-  }
-  ck.buckling_onset = positive(m, "buckling_onset", ck.buckling_onset, "model.");
-  if (!(ck.buckling_onset < 1)) fail("'model.buckling_onset' must be < 1");
-  ck.tensile_stiffness = positive(m, "tensile_stiffness_N_m", ck.tensile_stiffness, "model.");
-  ck.reference_strain = positive(m, "reference_strain", ck.reference_strain, "model.");
-}
-
+// The model section: `name` plus the model's own option keys (ClothModelRegistry), validated here so
+// that a bad key fails when the scene is read.
 void parseModel(const YAML::Node& m, DrapeSceneSpec& s) {
-  checkKeys(m, "model", {"name", "jacobian", "gravity", "drag", "shear", "bending", "settle_damping_per_s",
-                         "bending_version", "bending_jacobian", "buckling_onset", "tensile_stiffness_N_m",
-                         "reference_strain"});
-  if (m["name"]) s.model = getString(m["name"], "model.name");
-  if (m["jacobian"]) {
-    const std::string j = getString(m["jacobian"], "model.jacobian");
-    if (j == "exact") s.model_options.jacobian = JacobianMode::kExact;
-    else if (j == "definite_fix") s.model_options.jacobian = JacobianMode::kDefiniteFix;
-    else fail("'model.jacobian' must be exact or definite_fix");
+  if (!m.IsMap()) fail("'model' must be a map");
+  std::set<std::string> seen;
+  for (const auto& kv : m) {
+    if (!kv.first.IsScalar()) fail("'model' has a key that is not a plain string");
+    const std::string& key = kv.first.Scalar();
+    if (!seen.insert(key).second) fail("key " + quoted(joined("model", key)) + " appears twice");
+    if (key == "name") continue;
+    s.model.options[key] = getString(kv.second, joined("model", key));
   }
-  readBools(m, "model.",
-            {{"gravity", &s.model_options.gravity}, {"drag", &s.model_options.drag},
-             {"shear", &s.model_options.shear}, {"bending", &s.model_options.bending}});
-  if (m["settle_damping_per_s"]) {
-    s.model_options.settle_damping = getReal(m["settle_damping_per_s"], "model.settle_damping_per_s");
-    if (!(s.model_options.settle_damping >= 0)) fail("'model.settle_damping_per_s' must be >= 0");
+  if (m["name"]) s.model.name = getString(m["name"], "model.name");
+  try {
+    ClothModelRegistry::instance().validate(s.model);
+  } catch (const ClothModelError& e) {
+    fail(e.what());
   }
-  parseChoiKoKeys(m, s);
 }
 
 void parseSolverKeys(const YAML::Node& m, SolverSettings& solver) {
@@ -629,7 +608,7 @@ DrapeSceneSpec loadDrapeSceneYaml(const std::string& path) {
   return parseDrapeSceneYaml(text, slash == std::string::npos ? "." : path.substr(0, slash));
 }
 
-DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold) {
+DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold, const std::string& model) {
   DrapeSceneSpec s;
   s.textile = presetTextile("towel");
   s.material = Material::cotton();
@@ -638,9 +617,7 @@ DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold) {
   s.hold_position = Vec3(0, 0, 1.0);
   // The same settling damping for every configuration (it shortens the swinging, not the rest shape)
   // and the definite Jacobian fix, which every implicit configuration needs.
-  s.model_options.settle_damping = 4.0;
-  s.model_options.jacobian = JacobianMode::kDefiniteFix;
-  s.choi_ko_options.settle_damping = 4.0;
+  s.model = settlingModelSpec(model, 4.0);
   s.settings.max_time = 8.0;
   s.settings.dt = 1e-3;
   s.settings.dt_max = 0.02;

@@ -48,8 +48,7 @@ DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, Simulation
     throw std::invalid_argument("DrapeSimulation: pinned node lists have different lengths");
   for (Index p : pins_.nodes)
     if (p < 0 || p >= model.numNodes()) throw std::invalid_argument("DrapeSimulation: pinned node out of range");
-  const int b = model.dofsPerNode();
-  for (Index i = 0; i < model.numNodes(); ++i) total_mass_ += model.massPerDof()[i * b];
+  total_mass_ = model.totalMass();
   resetEnergyBudget();
 }
 
@@ -75,17 +74,15 @@ void DrapeSimulation::resetEnergyBudget() {
   if (!std::isfinite(energy_budget_)) energy_check_ = false;
 }
 
-Real DrapeSimulation::gravitationalEnergy(const VecX& x) const {
-  const int b = model_.dofsPerNode();
-  const VecX& m = model_.massPerDof();
-  Real e = 0;
-  for (Index i = 0; i < model_.numNodes(); ++i) e += m[i * b + 2] * kGravity * x[i * b + 2];
-  return e;
+const VecX& DrapeSimulation::positions() const {
+  if (model_.dofsPerNode() == 3) return x_;
+  positions_view_ = model_.positionsOf(x_);
+  return positions_view_;
 }
 
-Real DrapeSimulation::kineticEnergy() const {
-  return 0.5 * (model_.massPerDof().array() * v_.array().square()).sum();
-}
+Real DrapeSimulation::gravitationalEnergy(const VecX& x) const { return model_.gravitationalEnergy(x); }
+
+Real DrapeSimulation::kineticEnergy() const { return model_.kineticEnergy(x_, v_); }
 
 bool DrapeSimulation::checkDivergence(const VecX& x, const VecX& v, std::string* why) const {
   if (!x.allFinite() || !v.allFinite()) {
@@ -99,7 +96,7 @@ bool DrapeSimulation::checkDivergence(const VecX& x, const VecX& v, std::string*
     *why = s.str();
     return true;
   }
-  const Real ke = 0.5 * (model_.massPerDof().array() * v.array().square()).sum();
+  const Real ke = model_.kineticEnergy(x, v);
   if (energy_check_) {
     const Real e = ke + gravitationalEnergy(x);
     if (e > energy_budget_) {

@@ -121,13 +121,7 @@ class ImplicitEulerBase : public Integrator {
     const Real h2 = h * h;
 #pragma omp parallel for schedule(static)
     for (Index k = 0; k < static_cast<Index>(A.size()); ++k) A[k] = -h * D[k] - h2 * K[k];
-    const BlockPattern& p = model.jacobianPattern();
-    const int b = p.blockSize();
-    const VecX& m = model.massPerDof();
-    for (Index i = 0; i < p.numNodes(); ++i) {
-      Real* blk = system_.block(p.diagonal(i));
-      for (int r = 0; r < b; ++r) blk[r * b + r] += m[i * b + r];
-    }
+    model.addMassMatrix(x, 1.0, system_);  // M(x) is held constant over the step
     jac_.dfdx.multiply(v, kv_);
     rhs_ = h * (f_ + h * kv_);
     return true;
@@ -728,7 +722,8 @@ class RungeKutta4 : public Integrator {
                    VecX& x_new, VecX& v_new) override {
     StepOutcome out;
     const int b = model.dofsPerNode();
-    const VecX& m = model.massPerDof();
+    const std::vector<char> mask = pinnedMask(model.numNodes(), pins);
+    bool mass_ok = true;
     auto derivative = [&](VecX& xs, VecX& vs, Real ts, VecX& a) {
       // Pinned nodes sit exactly on their trajectory at every stage.
       for (size_t k = 0; k < pins.nodes.size(); ++k) {
@@ -737,10 +732,10 @@ class RungeKutta4 : public Integrator {
         vs.segment(p * b, b).setZero();
         vs.segment<3>(p * b) = pins.offsetVelocity(ts);
       }
-      const ForceReport rep = model.computeForces(xs, vs, a, nullptr);
+      const ForceReport rep = model.computeForces(xs, vs, force_, nullptr);
       out.degenerate_terms += rep.degenerate_terms;
-      a.array() /= m.array();
-      for (Index p : pins.nodes) a.segment(p * b, b).setZero();
+      // a = M^-1 f on the free nodes; pinned nodes do not accelerate (their offsets are piecewise linear).
+      if (!model.solveMass(xs, force_, mask, a)) mass_ok = false;
     };
     VecX x1 = x, v1 = v, a1, a2, a3, a4;
     derivative(x1, v1, t, a1);
@@ -769,12 +764,18 @@ class RungeKutta4 : public Integrator {
                         h * (v_new.segment<3>(i * b) - v_mid.segment<3>(i * b)).norm()});
     out.error_estimate = worst;
     out.error_order = 3;
-    if (!x_new.allFinite() || !v_new.allFinite()) {
+    if (!mass_ok) {
+      out.ok = false;
+      out.failure = "mass matrix solve failed";
+    } else if (!x_new.allFinite() || !v_new.allFinite()) {
       out.ok = false;
       out.failure = "non-finite state after step";
     }
     return out;
   }
+
+ private:
+  VecX force_;
 };
 
 }  // namespace

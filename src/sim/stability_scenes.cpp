@@ -85,20 +85,11 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   const bool pushed = sc.scene == CompressionScene::kPushedEdges;
   const Real zeta = run.damping ? run.damping_per_s : 0.0;
 
-  std::unique_ptr<ClothModel> model;
-  if (run.model == "choi_ko") {
-    ChoiKoOptions o = run.choi_ko_options;
-    o.settle_damping = zeta;
-    if (pushed) o.gravity = sc.push_gravity;
-    model = std::make_unique<ChoiKoClothModel>(topo, run.material, o);
-  } else if (run.model == "particle_kes") {
-    ParticleModelOptions o = run.particle_options;
-    o.settle_damping = zeta;
-    if (pushed) o.gravity = sc.push_gravity;
-    model = std::make_unique<ParticleClothModel>(topo, run.material, o);
-  } else {
-    throw std::invalid_argument("stability run: unknown model '" + run.model + "' (choi_ko or particle_kes)");
-  }
+  ClothModelSpec model_spec = run.model;
+  const ClothModelDescriptor& descriptor = ClothModelRegistry::instance().find(model_spec.name);
+  if (descriptor.hasOptionKey("settle_damping_per_s")) model_spec.set("settle_damping_per_s", zeta);
+  if (pushed && descriptor.hasOptionKey("gravity")) model_spec.set("gravity", sc.push_gravity);
+  std::unique_ptr<ClothModel> model = ClothModelRegistry::instance().create(model_spec, topo, run.material);
 
   // Initial pose with the out-of-plane perturbation: a smooth first mode plus pseudo-random noise.
   VecX x0(3 * n);
@@ -189,7 +180,7 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
     rr = sim.run(std::min(sim.time() + chunk, end_time));
     if (rr.diverged) break;
     res.peak_rms_speed = std::max(res.peak_rms_speed, rmsSpeed(*model, sim.velocities()));
-    res.peak_edge_stretch = std::max(res.peak_edge_stretch, model->maxEdgeStretch(sim.positions()));
+    res.peak_edge_stretch = std::max(res.peak_edge_stretch, model->maxEdgeStretch(sim.state()));
   }
   res.stable = !rr.diverged && sim.time() >= end_time - 1e-9;
   res.reason = rr.diverged ? rr.divergence_reason : "";
@@ -212,7 +203,7 @@ std::vector<StabilityRow> scanStability(const CompressionSceneSpec& scene, const
     StabilityRunSpec r = run;
     r.dt = dt;
     StabilityRow row;
-    row.model = label.empty() ? run.model : label;
+    row.model = label.empty() ? run.model.name : label;
     row.scene = toString(scene.scene);
     row.dt = dt;
     row.damping = run.damping;

@@ -75,7 +75,7 @@ const char* kUsage =
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
-    "         [--model particle_kes|choi_ko] [--allow-no-rest] [--quiet]\n"
+    "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
@@ -207,7 +207,7 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--cg-tolerance", "--cg-warm-start", "--model", "--allow-no-rest", "--quiet", "--bracket",
+               "--cg-tolerance", "--cg-warm-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
                "--self-collision", "--memory-budget-mb"});
   DrapeBuildConfig c;
   try {
@@ -274,15 +274,6 @@ int cmdBuild(const Args& a) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  if (a.has("--jacobian")) {
-    const std::string j = a.get("--jacobian");
-    if (j == "exact")
-      c.model_options.jacobian = JacobianMode::kExact;
-    else if (j == "definite_fix")
-      c.model_options.jacobian = JacobianMode::kDefiniteFix;
-    else
-      throw UsageError("--jacobian: expected exact or definite_fix");
-  }
   if (a.has("--dt-max")) c.settings.dt_max = number(a.get("--dt-max"), "--dt-max");
   if (a.has("--tolerance")) c.settings.error_tolerance = number(a.get("--tolerance"), "--tolerance");
   if (a.has("--cg-tolerance")) {
@@ -292,13 +283,23 @@ int cmdBuild(const Args& a) {
   }
   if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
   if (a.has("--self-collision")) c.self_collision = true;
-  if (a.has("--model")) {
-    c.model = a.get("--model");
-    // Checked before the database file is opened (and created).
-    if (!isClothModelName(c.model)) throw UsageError("--model: expected particle_kes or choi_ko");
-  }
   if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
-  if (a.has("--settle-damping")) c.model_options.settle_damping = number(a.get("--settle-damping"), "--settle-damping");
+  // The model and its options, checked through the model registry before the database file is opened
+  // (and created): the build's defaults for the model, then --jacobian, --settle-damping and every
+  // --model-option KEY=VALUE (a key of the scene file's model: section).
+  try {
+    if (a.has("--model")) c.model = DrapeBuildConfig::defaultModelSpec(a.get("--model"));
+    if (a.has("--jacobian")) c.model.set("jacobian", a.get("--jacobian"));
+    if (a.has("--settle-damping")) c.model.set("settle_damping_per_s", a.get("--settle-damping"));
+    for (const std::string& kv : a.all("--model-option")) {
+      const auto eq = kv.find('=');
+      if (eq == std::string::npos || eq == 0) throw UsageError("--model-option: expected KEY=VALUE, got '" + kv + "'");
+      c.model.set(kv.substr(0, eq), kv.substr(eq + 1));
+    }
+    ClothModelRegistry::instance().validate(c.model);
+  } catch (const ClothModelError& e) {
+    throw UsageError(std::string("--model: ") + e.what());
+  }
   c.require_rest = !a.has("--allow-no-rest");
 
   HangingDrapeDatabase db(a.require("--db"));

@@ -244,7 +244,7 @@ TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
   c.settings.dt_max = nan;
   expectInvalid(c, "NaN dt_max");
   c = smallSquare();
-  c.model_options.settle_damping = std::numeric_limits<double>::infinity();
+  c.model.set("settle_damping_per_s", std::numeric_limits<double>::infinity());
   expectInvalid(c, "infinite damping");
   c = smallSquare();
   c.lattice_spacing = -1;
@@ -259,7 +259,7 @@ TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
   c.textile.outline = {Vec2(0, 0), Vec2(1, 1), Vec2(1, 0), Vec2(0, 1)};
   expectInvalid(c, "self-intersecting outline");
   c = smallSquare();
-  c.model = "choi_ko_missing";
+  c.model = ClothModelSpec("choi_ko_missing");
   expectInvalid(c, "unknown model");
   c = smallSquare();
   c.frame.width_px = 0;

@@ -27,6 +27,7 @@
 #endif
 
 #include "../test_support.h"
+#include "textile_handling/sim/particle_cloth_model.h"
 #include "textile_handling/sim/choi_ko_model.h"
 
 #include <gtest/gtest.h>
@@ -1062,7 +1063,7 @@ TEST(ChoiKoStability, StableWithoutDampingAtTenAndTwentyMilliseconds) {
       CompressionSceneSpec scene;
       scene.scene = s;
       StabilityRunSpec run;
-      run.model = "choi_ko";
+      run.model = ClothModelSpec("choi_ko");
       run.dt = dt;
       run.damping = false;
       const StabilityResult r = runCompressionScene(scene, run);
@@ -1097,9 +1098,8 @@ TEST(ChoiKoStability, StableAtTenMillisecondsAtOneCentimetreResolution) {
 // with the Choi-Ko model's default options: settle damping 4/s, semi-implicit Euler with the
 // error-controlled step, default rest thresholds.
 DrapeSceneSpec benchTowel(Real spacing, const std::string& hold, Real max_time) {
-  DrapeSceneSpec s = benchmarkTowelSpec(spacing, hold);
+  DrapeSceneSpec s = benchmarkTowelSpec(spacing, hold, "choi_ko");
   useFastSolverSettings(s.settings);
-  s.model = "choi_ko";
   s.settings.integrator = IntegratorType::kSemiImplicitEuler;
   s.settings.policy = StepPolicy::kErrorControlled;
   s.settings.max_time = max_time;
@@ -1154,7 +1154,7 @@ TEST(ChoiKoStability, ParticleModelWithExactJacobianFailsAtTenMilliseconds) {
     CompressionSceneSpec scene;
     scene.scene = s;
     StabilityRunSpec run;
-    run.model = "particle_kes";
+    run.model = ClothModelSpec("particle_kes");
     run.dt = 0.01;
     const StabilityResult r = runCompressionScene(scene, run);
     EXPECT_FALSE(r.stable) << toString(s);
@@ -1182,7 +1182,7 @@ TEST(ChoiKoStability, ScanAndCsv) {
   EXPECT_EQ(compressionSceneFromString("lowered_onto_table"), CompressionScene::kLoweredOntoTable);
   EXPECT_THROW(compressionSceneFromString("table"), std::invalid_argument);
   StabilityRunSpec bad = run;
-  bad.model = "cloth";
+  bad.model = ClothModelSpec("cloth");
   EXPECT_THROW(runCompressionScene(scene, bad), std::invalid_argument);
 }
 

@@ -1,6 +1,7 @@
 // Tests for the collision module (docs/collision.md): triangulation, exact predicates, the
 // independent intersection checker, the three self-collision versions of the thesis on hand-made
 // failure scenes, obstacles, pinned particles, thread independence and two drape scenes.
+#include "textile_handling/sim/particle_cloth_model.h"
 #include "textile_handling/sim/collision.h"
 
 #include <gtest/gtest.h>
@@ -905,8 +906,8 @@ DrapeSceneSpec squareSpec(Real spacing) {
   s.spacing = spacing;
   s.hold = {HoldPoint{"centre", Vec2::Zero()}};
   s.hold_position = Vec3(0, 0, 1.0);
-  s.model_options.settle_damping = 4.0;
-  s.model_options.jacobian = JacobianMode::kDefiniteFix;
+  s.model.set("settle_damping_per_s", 4.0);
+  s.model.set("jacobian", "definite_fix");
   s.settings.integrator = IntegratorType::kSemiImplicitEuler;
   s.settings.policy = StepPolicy::kFixed;
   s.settings.dt = 1e-3;
@@ -1001,8 +1002,8 @@ TEST(DrapeScenes, TableclothOnATableStaysOutOfTheTable) {
   spec.spacing = 0.04;
   spec.pinned_regions = {Eigen::Matrix<Real, 4, 1>(0.25, 0.25, 0.75, 0.75)};
   spec.hold_position = Vec3(0, 0, 1.0);  // the region's centre
-  spec.model_options.settle_damping = 4.0;
-  spec.model_options.jacobian = JacobianMode::kDefiniteFix;
+  spec.model.set("settle_damping_per_s", 4.0);
+  spec.model.set("jacobian", "definite_fix");
   spec.settings.integrator = IntegratorType::kSemiImplicitEuler;
   spec.settings.policy = StepPolicy::kFixed;
   spec.settings.dt = 2e-3;

@@ -26,6 +26,7 @@
 #include <omp.h>
 #endif
 
+#include "textile_handling/sim/choi_ko_model.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/particle_cloth_model.h"
@@ -346,7 +347,7 @@ DrapeSceneSpec resumeSpec(IntegratorType integrator, StepPolicy policy) {
   s.hold = {HoldPoint{"ul", Vec2::Zero()}, HoldPoint{"", Vec2(0.12, 0.12)}};
   s.lift_times = {0.0, 0.05, 0.15};
   s.lift_offsets = {Vec3::Zero(), Vec3::Zero(), Vec3(0, 0.01, 0.03)};
-  s.model_options.settle_damping = 1.0;
+  s.model.set("settle_damping_per_s", 1.0);
   s.settings.integrator = integrator;
   s.settings.policy = policy;
   s.settings.dt = 1e-3;
@@ -446,7 +447,7 @@ TEST(DrapeSaveResume, ResumeWhileRestTimerRunsReachesRestAtTheSameStep) {
   spec.textile = rectangle("rest_square", 0.1, 0.1);
   spec.spacing = 0.02;
   spec.hold = {HoldPoint{"", Vec2(0, 0.1)}};
-  spec.model_options.settle_damping = 4.0;
+  spec.model.set("settle_damping_per_s", 4.0);
   // RK4 with error control: an integrator without internal state, so that this test is about the
   // rest timer only (the implicit integrators are covered by the previous test). The tolerance is
   // tight because with 1e-5 m RK4 hovers at its stability limit and its jitter (mean speed ~2e-3
@@ -626,7 +627,7 @@ DrapeSceneSpec restSpec() {
   s.textile.named_points = {NamedPoint{"ul", "corner", Vec2(0, 0.1)}};
   s.spacing = 0.02;
   s.hold = {HoldPoint{"ul", Vec2::Zero()}};
-  s.model_options.settle_damping = 4.0;
+  s.model.set("settle_damping_per_s", 4.0);
   s.settings.integrator = IntegratorType::kSemiImplicitEuler;
   s.settings.policy = StepPolicy::kErrorControlled;
   s.settings.dt = 1e-3;
@@ -732,9 +733,10 @@ TEST(DrapeSceneYaml, RepositorySceneParsesAndBuilds) {
   ASSERT_EQ(s.hold.size(), 1u);
   EXPECT_EQ(s.hold[0].name, "corner_ul");
   EXPECT_TRUE(s.hold_position.isApprox(Vec3(0, 0, 1)));
-  EXPECT_EQ(s.model, "particle_kes");
-  EXPECT_EQ(s.model_options.jacobian, JacobianMode::kDefiniteFix);
-  EXPECT_DOUBLE_EQ(s.model_options.settle_damping, 4.0);
+  EXPECT_EQ(s.model.name, "particle_kes");
+  const auto o = std::any_cast<ParticleModelOptions>(ClothModelRegistry::instance().parseOptions(s.model));
+  EXPECT_EQ(o.jacobian, JacobianMode::kDefiniteFix);
+  EXPECT_DOUBLE_EQ(o.settle_damping, 4.0);
   EXPECT_EQ(s.settings.integrator, IntegratorType::kSemiImplicitEuler);
   EXPECT_EQ(s.settings.policy, StepPolicy::kErrorControlled);
   EXPECT_DOUBLE_EQ(s.settings.dt, 0.001);
@@ -770,9 +772,10 @@ TEST(DrapeSceneYaml, FullSceneWithAllSections) {
   EXPECT_EQ(s.hold.size(), 2u);
   EXPECT_EQ(s.lift_times.size(), 2u);
   EXPECT_EQ(s.pinned_regions.size(), 1u);
-  EXPECT_EQ(s.model_options.jacobian, JacobianMode::kDefiniteFix);
-  EXPECT_FALSE(s.model_options.drag);
-  EXPECT_DOUBLE_EQ(s.model_options.settle_damping, 2.5);
+  const auto o = std::any_cast<ParticleModelOptions>(ClothModelRegistry::instance().parseOptions(s.model));
+  EXPECT_EQ(o.jacobian, JacobianMode::kDefiniteFix);
+  EXPECT_FALSE(o.drag);
+  EXPECT_DOUBLE_EQ(o.settle_damping, 2.5);
   EXPECT_EQ(s.settings.integrator, IntegratorType::kBlockDiagonalEuler);
   EXPECT_EQ(s.settings.policy, StepPolicy::kThesis);
   EXPECT_EQ(s.settings.trajectory_every, 10);
@@ -837,16 +840,18 @@ hold: {points: [corner_ul]}
 model: {name: choi_ko, bending_version: plate, bending_jacobian: drop_negative, tensile_stiffness_N_m: 400,
         settle_damping_per_s: 0}
 )");
-  EXPECT_EQ(s.model, "choi_ko");
-  EXPECT_EQ(s.choi_ko_options.bending_version, ChoiKoBending::kPlate);
-  EXPECT_EQ(s.choi_ko_options.bending_jacobian, choi_ko::BendingJacobian::kDropNegative);
-  EXPECT_DOUBLE_EQ(s.choi_ko_options.tensile_stiffness, 400.0);
+  EXPECT_EQ(s.model.name, "choi_ko");
+  const auto o = std::any_cast<ChoiKoOptions>(ClothModelRegistry::instance().parseOptions(s.model));
+  EXPECT_EQ(o.bending_version, ChoiKoBending::kPlate);
+  EXPECT_EQ(o.bending_jacobian, choi_ko::BendingJacobian::kDropNegative);
+  EXPECT_DOUBLE_EQ(o.tensile_stiffness, 400.0);
+  EXPECT_DOUBLE_EQ(o.settle_damping, 0.0);
   const DrapeScene scene = buildDrapeScene(s);
   EXPECT_EQ(scene.model->name(), "choi_ko");
   EXPECT_EQ(scene.model->numNodes(), 7 * 7);
   EXPECT_THROW(parseDrapeSceneYaml(withRequiredKeys("model: {bending_version: shell}")), std::invalid_argument);
   DrapeSceneSpec bad = s;
-  bad.model = "yarn_level";
+  bad.model = ClothModelSpec("yarn_level");
   EXPECT_THROW(buildDrapeScene(bad), std::invalid_argument);
 }
 

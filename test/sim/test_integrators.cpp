@@ -81,8 +81,8 @@ struct EnergyRun {
 // the only forces are gravity and the elastic terms, all conservative, and the pin does no work.
 EnergyRun runRk4Energy(Real dt, Real duration) {
   DrapeSceneSpec spec = squareSpec(0.1, 0.02);
-  spec.model_options.drag = false;
-  spec.model_options.settle_damping = 0;
+  spec.model.set("drag", false);
+  spec.model.set("settle_damping_per_s", 0.0);
   spec.settings.integrator = IntegratorType::kRK4;
   spec.settings.policy = StepPolicy::kFixed;
   spec.settings.dt = dt;

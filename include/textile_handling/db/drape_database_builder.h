@@ -46,8 +46,8 @@ struct DrapeBuildConfig {
   // ---- simulation ----
   Real spacing = 0.02;              ///< particle grid spacing d [m]
   Real hold_height = 1.0;           ///< world z of the held particle [m]
-  std::string model = "particle_kes";
-  ParticleModelOptions model_options = defaultModelOptions();
+  /// Cloth model and options (any registered model; its fingerprint lines go into the parameter text).
+  ClothModelSpec model = defaultModelSpec("particle_kes");
   SimulationSettings settings = defaultSimulationSettings();
   /// Self-collision v3 with the contact forces (default SelfCollisionOptions, as the demo scene;
   /// docs/collision.md) in every simulation. Off by default: about 1.7 times the simulation cost; without
@@ -88,8 +88,9 @@ struct DrapeBuildConfig {
   /// with the simulator's default linear solver, error-controlled steps (tolerance 0.1 mm, dt_max
   /// 40 ms), 20 s cap.
   static SimulationSettings defaultSimulationSettings();
-  /// settle_damping 4 /s and the definite-fix Jacobian.
-  static ParticleModelOptions defaultModelOptions();
+  /// The build's options for `model`: settlingModelSpec(model, 4 /s), i.e. settle damping 4 /s and the
+  /// definite-fix Jacobian where the model has these keys. Throws ClothModelError for unknown models.
+  static ClothModelSpec defaultModelSpec(const std::string& model);
 };
 
 struct DrapeBuildReport {

@@ -31,6 +31,9 @@ struct TextileRegistration {
   std::string material_yaml;              ///< or a whole material as YAML text (wins over the name)
   Real hold_point_spacing = 0;            ///< lattice spacing of the hold points [m]; 0 = default
   std::string model;                      ///< cloth model (RegistryOptions::models); empty = default
+  /// Options of `model` as "key=value key=value" (the scene file's model: keys); empty = the build
+  /// defaults for that model (DrapeBuildConfig::defaultModelSpec).
+  std::string model_options;
 };
 
 /// A rebuild of a stored textile's entries; empty / zero fields keep the registry's defaults.
@@ -40,6 +43,7 @@ struct ResimulationRequest {
   std::string material_yaml;
   Real spacing = 0;                       ///< particle grid spacing d [m]; 0 = default
   std::string model;                      ///< cloth model; empty = default
+  std::string model_options;              ///< as TextileRegistration::model_options
 };
 
 struct RegistryOptions {
@@ -49,8 +53,8 @@ struct RegistryOptions {
   std::string material_dir;
   /// Upper bound on the hold points of one build (a guard against absurd lattice spacings).
   int max_hold_points = 2000;
-  /// Models a request may name.
-  std::vector<std::string> models = {"particle_kes", "choi_ko"};
+  /// Models a request may name; empty = every model in ClothModelRegistry.
+  std::vector<std::string> models;
   /// A resimulation replaces the active entries only if at most this fraction of its simulations
   /// failed (the rest done); otherwise the old entries stay and the new ones are kept staged.
   double max_failed_fraction = 0.05;
@@ -151,7 +155,8 @@ class TextileRegistry {
   QueuedBuild enqueue(Job job);
   /// A build of a stored textile with the registry's defaults and `material`.
   Job storedTextileJob(const db::TextileRecord& rec, const Material& material) const;
-  std::string checkedModel(const std::string& model) const;  // throws InvalidInputError
+  /// The build's model for a request's model text ("name key=value ..."); throws InvalidInputError.
+  ClothModelSpec checkedModel(const std::string& model_text) const;
   int planHoldPoints(const db::DrapeBuildConfig& config);
   void workerLoop();
   void runJob(Job& job, int queued_behind);

@@ -1,6 +1,18 @@
 // The interface every cloth model implements, so that all models run on the same integrators,
-// scenes, database and benchmarks. A model owns its DOFs, masses, forces and Jacobians; it knows
+// scenes, database and benchmarks. A model owns its DOFs, its mass, its forces and Jacobians; it knows
 // nothing about time stepping, pinned nodes or collisions.
+//
+// DOF layout (the contract every model keeps): node i owns the DOFs [i b, (i + 1) b) of the stacked
+// state vector, b = dofsPerNode(), and the first three of them are the node's world position [m].
+// Further DOFs (a yarn crossing's sliding coordinates u, v, ...) follow. Pins, collision handling, the
+// renderers and the database read and write positions only, through positionsOf() / setPositions().
+//
+// Mass: a model either has a constant diagonal (lumped) mass, hasLumpedMass() == true, massPerDof() is
+// then exact and everything takes a fast path; or it assembles a block-sparse, possibly
+// configuration-dependent mass matrix M(x) on its Jacobian pattern (addMassMatrix) and overrides the
+// mass operations below. The quadratic-velocity terms of a configuration-dependent mass
+// (-dM/dt v + 1/2 d(v^T M v)/dx) are part of the model's computeForces(); the integrators treat M(x) as
+// constant during a step.
 #pragma once
 
 #include <string>
@@ -30,19 +42,15 @@ class ClothModel {
   /// Short model name as used in CSV files and the database ("particle_kes", "choi_ko", ...).
   virtual std::string name() const = 0;
   virtual Index numNodes() const = 0;
-  /// DOFs per node: 3 for particles (x, y, z), 5 for yarn crossings (x, y, z, u, v).
+  /// DOFs per node, >= 3: 3 for particles (x, y, z), 5 for yarn crossings (x, y, z, u, v).
   virtual int dofsPerNode() const { return 3; }
   Index numDofs() const { return numNodes() * dofsPerNode(); }
-  /// Diagonal (lumped) mass per DOF [kg, or kg*m^2 for non-positional DOFs].
-  virtual const VecX& massPerDof() const = 0;
-  /// Block pattern of df/dx and df/dv (block size = dofsPerNode()).
+  /// Block pattern of df/dx and df/dv (block size = dofsPerNode()); it also holds the mass's couplings.
   virtual const BlockPattern& jacobianPattern() const = 0;
   /// Forces f(x, v) [N]; with `jac`, also df/dx and df/dv (values overwritten, pattern fixed).
   virtual ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) = 0;
   /// Potential energy of all conservative forces (gravity and elastic terms) [J].
   virtual Real potentialEnergy(const VecX& x) const = 0;
-  /// World position of a node [m] (for rendering, rest detection and collision).
-  virtual Vec3 nodePosition(const VecX& x, Index node) const { return node3(x, node); }
   /// Largest ratio of current to rest length over the structural edges (divergence detection).
   virtual Real maxEdgeStretch(const VecX& x) const = 0;
   /// Called once per accepted step; models with internal state (hysteresis) commit it here.
@@ -51,10 +59,50 @@ class ClothModel {
   virtual std::vector<Real> internalState() const { return {}; }
   virtual bool setInternalState(const std::vector<Real>& state) { return state.empty(); }
 
+  // ---- Mass ---------------------------------------------------------------------------------------
+  /// True if the mass matrix is constant and diagonal, i.e. equal to massPerDof() (the fast path).
+  virtual bool hasLumpedMass() const { return true; }
+  /// Lumped mass per DOF [kg, or kg m^2 for angular DOFs], size numDofs(), all > 0. Exact when
+  /// hasLumpedMass(); otherwise a lumped approximation of M(x0) that only estimates use.
+  virtual const VecX& massPerDof() const = 0;
+  /// Adds scale * M(x) to `a`, a matrix on jacobianPattern(). Default: the lumped diagonal.
+  virtual void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const;
+  /// mv = M(x) v (size numDofs()). Default: the lumped diagonal.
+  virtual void multiplyMass(const VecX& x, const VecX& v, VecX& mv) const;
+  /// Accelerations of the free nodes: solves M_ff(x) a_f = f_f, with a = 0 on every DOF of the nodes
+  /// flagged in `node_pinned` (size numNodes(), may be empty = none pinned). Returns false if the solve
+  /// failed. Default: a = f / massPerDof() for lumped models, preconditioned conjugate gradients on
+  /// the assembled M(x) otherwise (massSolveByConjugateGradients).
+  virtual bool solveMass(const VecX& x, const VecX& f, const std::vector<char>& node_pinned, VecX& a) const;
+  /// Kinetic energy 1/2 v^T M(x) v [J].
+  virtual Real kineticEnergy(const VecX& x, const VecX& v) const;
+  /// Gravitational part of potentialEnergy() [J] (z up). Default: sum of m_z g z over the nodes.
+  virtual Real gravitationalEnergy(const VecX& x) const;
+  /// Total mass of the textile [kg] (rest detection's mean speed, divergence bounds). Default: the sum of
+  /// massPerDof() over the first DOF of every node.
+  virtual Real totalMass() const;
+
+  // ---- Positions ----------------------------------------------------------------------------------
+  /// World position of a node [m] (the first three DOFs of its block; decorators forward it).
+  virtual Vec3 nodePosition(const VecX& x, Index node) const {
+    return Eigen::Map<const Vec3>(x.data() + static_cast<Eigen::Index>(node) * dofsPerNode());
+  }
+  /// The 3N vector of node positions (node after node) of state x. For 3-DOF models this is x itself.
+  VecX positionsOf(const VecX& x) const;
+  /// Writes the 3N positions `p` into the position DOFs of `x`; the other DOFs keep their values.
+  void setPositions(const VecX& p, VecX& x) const;
+
   /// Convenience: allocates Jacobian storage on this model's pattern.
   ForceJacobians makeJacobians() const {
     return ForceJacobians{BlockSparseMatrix(&jacobianPattern()), BlockSparseMatrix(&jacobianPattern())};
   }
 };
+
+/// Solves M_ff(x) a_f = f_f for a model with a non-lumped mass: M assembled with addMassMatrix(),
+/// block-Jacobi preconditioned conjugate gradients to a relative residual of 1e-12 (the mass matrix is
+/// symmetric positive definite and well conditioned). Returns false if CG breaks down or does not
+/// converge in numDofs() iterations.
+bool massSolveByConjugateGradients(const ClothModel& model, const VecX& x, const VecX& f,
+                                   const std::vector<char>& node_pinned, VecX& a);
 
 }  // namespace textile_handling

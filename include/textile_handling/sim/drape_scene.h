@@ -8,11 +8,11 @@
 #include <utility>
 #include <vector>
 
-#include "textile_handling/sim/choi_ko_model.h"
+#include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/material.h"
-#include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/position_view_pass.h"
 #include "textile_handling/sim/textile_geometry.h"
 
 namespace textile_handling {
@@ -44,9 +44,8 @@ struct DrapeSceneSpec {
   std::vector<Eigen::Matrix<Real, 4, 1>> pinned_regions;
   std::vector<Real> lift_times;                ///< waypoints of the holder offset [s]
   std::vector<Vec3> lift_offsets;              ///< [m]
-  std::string model = "particle_kes";           ///< particle_kes | choi_ko
-  ParticleModelOptions model_options;           ///< particle_kes
-  ChoiKoOptions choi_ko_options;                ///< choi_ko (docs/choi_ko.md)
+  /// Cloth model and its options (scene key model:; the names and keys of ClothModelRegistry).
+  ClothModelSpec model;
   SimulationSettings settings;
   /// Self-collision after every step (scene key collision.self: off | v1 | v2 | v3). Off by default:
   /// a scene gets no more model than it needs; the demo scene and the database builder turn v3 on.
@@ -70,6 +69,8 @@ struct DrapeScene {
   std::unique_ptr<ObstaclePass> obstacle_pass;
   std::unique_ptr<SelfCollisionPass> self_collision_pass;
   std::unique_ptr<PostStepPassChain> pass_chain;  ///< obstacles first, then self-collision
+  /// For models with more than 3 DOFs per node: the passes above, run on the node positions.
+  std::unique_ptr<PositionViewPass> position_view;
   /// The pass to give DrapeSimulation::setPostStepPass() (its wall time and events are reported in
   /// RunResult::post_step_ms / post_step_events); null when the scene has no collision handling.
   PostStepPass* postStepPass() const;
@@ -77,23 +78,26 @@ struct DrapeScene {
   ClothTriangles triangles() const;
 };
 
-/// Builds a scene; throws std::invalid_argument with a clear message on bad input.
+/// Builds a scene. Bad input throws SceneError (a scene field), ClothModelError (the model or one of its
+/// options) or MemoryBudgetError, all SimError (sim_errors.h), with a message naming the field.
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec);
-/// A cloth model buildDrapeScene() knows: "particle_kes" or "choi_ko".
+/// A cloth model buildDrapeScene() knows (registered in ClothModelRegistry).
 bool isClothModelName(const std::string& name);
 
 /// Parses a scene from YAML text; relative material paths resolve against `base_dir`.
-/// Throws std::invalid_argument naming the offending field.
+/// Throws SceneError naming the offending field (key path).
 DrapeSceneSpec parseDrapeSceneYaml(const std::string& text, const std::string& base_dir = ".");
 DrapeSceneSpec loadDrapeSceneYaml(const std::string& path);
 
-/// Vertical extent of the textile below its first held point [m].
-Real hangingDepth(const DrapeScene& scene, const VecX& x);
+/// Vertical extent of the textile below its first held point [m]; `positions` are the 3N node
+/// positions (DrapeSimulation::positions()).
+Real hangingDepth(const DrapeScene& scene, const VecX& positions);
 
 /// The benchmark's towel scene (drape_bench, docs/simulation.md): the 64 x 46 cm cotton towel at spacing
-/// `spacing` held at the named point `hold` 1 m up, settle damping 4/s for both models, the definite-fix
-/// Jacobian, 8 s cap, error-controlled steps (tolerance 1 mm, dt_max 20 ms).
-DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold);
+/// `spacing` held at the named point `hold` 1 m up, the model `model` with settlingModelSpec() options
+/// (settle damping 4/s, the definite-fix Jacobian where the model has one), 8 s cap, error-controlled
+/// steps (tolerance 1 mm, dt_max 20 ms).
+DrapeSceneSpec benchmarkTowelSpec(Real spacing, const std::string& hold, const std::string& model = "particle_kes");
 /// The recommended fast semi-implicit settings (the demo scene's): dt_max 12.5 ms, CG tolerance 0.03
 /// with warm start.
 void useFastSolverSettings(SimulationSettings& s);

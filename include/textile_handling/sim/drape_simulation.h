@@ -94,7 +94,10 @@ class DrapeSimulation {
   /// so far (counters accumulate over calls).
   RunResult run(Real until = std::numeric_limits<Real>::infinity());
 
-  const VecX& positions() const { return x_; }
+  /// Node positions, 3N (node after node) [m]; the state itself for 3-DOF models.
+  const VecX& positions() const;
+  /// The model's whole state and its velocity (numDofs() each); save/resume and the integrators use these.
+  const VecX& state() const { return x_; }
   const VecX& velocities() const { return v_; }
   Real time() const { return t_; }
   Real currentDt() const { return dt_; }
@@ -127,6 +130,7 @@ class DrapeSimulation {
   std::unique_ptr<Integrator> integrator_;
   PostStepPass* post_ = nullptr;
   VecX x_, v_, x_new_, v_new_;
+  mutable VecX positions_view_;  // positions() of a model with more than 3 DOFs per node
   Real t_ = 0;
   Real dt_ = 0;
   // Thesis rule memory.

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "textile_handling/sim/sim_errors.h"
+
 #include "textile_handling/sim/drape_simulation.h"
 
 namespace textile_handling {
@@ -47,9 +49,9 @@ std::size_t defaultMemoryBudgetBytes();
 std::size_t effectiveMemoryBudget(std::size_t configured);
 
 /// A simulation would need more memory than its budget allows.
-class MemoryBudgetError : public std::invalid_argument {
+class MemoryBudgetError : public SimError {
  public:
-  explicit MemoryBudgetError(const std::string& what) : std::invalid_argument(what) {}
+  explicit MemoryBudgetError(const std::string& what) : SimError(what) {}
 };
 
 /// Throws MemoryBudgetError if `simultaneous` simulations of `estimate_bytes` each exceed

@@ -17,9 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "textile_handling/sim/choi_ko_model.h"
+#include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/drape_simulation.h"
-#include "textile_handling/sim/particle_cloth_model.h"
 
 namespace textile_handling {
 
@@ -79,13 +78,13 @@ struct CompressionSceneSpec {
 };
 
 struct StabilityRunSpec {
-  std::string model = "choi_ko";  ///< "choi_ko" or "particle_kes"
+  /// Any registered model and its options; settle_damping_per_s (and gravity in the pushed-edges
+  /// scene) are set by the run.
+  ClothModelSpec model = ClothModelSpec("choi_ko");
   Real dt = 0.01;                 ///< fixed step [s]
   bool damping = false;           ///< add settle (mass-proportional) damping
   Real damping_per_s = 5.0;       ///< zeta [1/s] used when `damping` is on
   Material material = Material::cotton();
-  ParticleModelOptions particle_options;  ///< its settle_damping is replaced by the above
-  ChoiKoOptions choi_ko_options;          ///< its settle_damping is replaced by the above
   IntegratorType integrator = IntegratorType::kSemiImplicitEuler;
   SolverSettings solver;
   /// Divergence bounds handed to DrapeSimulation (RMS speed, edge stretch).
