@@ -37,7 +37,10 @@ std::unique_ptr<ClothModel> withContactForces(std::unique_ptr<ClothModel> model,
 ForceReport ContactForceModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
   const ForceReport r = base_.computeForces(x, v, f, jac);
   const VecX& a = pass_.contactAccelerations();
-  if (a.size() == f.size()) f += base_.massPerDof().cwiseProduct(a);
+  if (a.size() == f.size()) {
+    base_.multiplyMass(x, a, ma_);  // m a for a lumped mass, M(x) a otherwise
+    f += ma_;
+  }
   return r;
 }
 

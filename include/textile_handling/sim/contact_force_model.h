@@ -30,6 +30,15 @@ class ContactForceModel : public ClothModel {
   Index numNodes() const override { return base_.numNodes(); }
   int dofsPerNode() const override { return base_.dofsPerNode(); }
   const VecX& massPerDof() const override { return base_.massPerDof(); }
+  bool hasLumpedMass() const override { return base_.hasLumpedMass(); }
+  void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const override { base_.addMassMatrix(x, scale, a); }
+  void multiplyMass(const VecX& x, const VecX& v, VecX& mv) const override { base_.multiplyMass(x, v, mv); }
+  bool solveMass(const VecX& x, const VecX& f, const std::vector<char>& pinned, VecX& a) const override {
+    return base_.solveMass(x, f, pinned, a);
+  }
+  Real kineticEnergy(const VecX& x, const VecX& v) const override { return base_.kineticEnergy(x, v); }
+  Real gravitationalEnergy(const VecX& x) const override { return base_.gravitationalEnergy(x); }
+  Real totalMass() const override { return base_.totalMass(); }
   const BlockPattern& jacobianPattern() const override { return base_.jacobianPattern(); }
   ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
   Real potentialEnergy(const VecX& x) const override { return base_.potentialEnergy(x); }
@@ -43,6 +52,7 @@ class ContactForceModel : public ClothModel {
   std::unique_ptr<ClothModel> owned_;
   ClothModel& base_;
   SelfCollisionPass& pass_;
+  VecX ma_;  // contact forces M a, reused between evaluations
 };
 
 /// Wraps `model` in a ContactForceModel when the pass runs v3 with the proximity stage and

@@ -33,6 +33,15 @@ class AnchoredClothModel : public ClothModel {
   Index numNodes() const override { return inner_.numNodes(); }
   int dofsPerNode() const override { return inner_.dofsPerNode(); }
   const VecX& massPerDof() const override { return inner_.massPerDof(); }
+  bool hasLumpedMass() const override { return inner_.hasLumpedMass(); }
+  void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const override { inner_.addMassMatrix(x, scale, a); }
+  void multiplyMass(const VecX& x, const VecX& v, VecX& mv) const override { inner_.multiplyMass(x, v, mv); }
+  bool solveMass(const VecX& x, const VecX& f, const std::vector<char>& pinned, VecX& a) const override {
+    return inner_.solveMass(x, f, pinned, a);
+  }
+  Real kineticEnergy(const VecX& x, const VecX& v) const override { return inner_.kineticEnergy(x, v); }
+  Real gravitationalEnergy(const VecX& x) const override { return inner_.gravitationalEnergy(x); }
+  Real totalMass() const override { return inner_.totalMass(); }
   const BlockPattern& jacobianPattern() const override { return inner_.jacobianPattern(); }
   ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
   Real potentialEnergy(const VecX& x) const override;
