@@ -39,10 +39,10 @@
 #include <string>
 #include <vector>
 
-#include "textile_handling/sim/bench_chart.h"
+#include "textile_handling/bench/bench_chart.h"
+#include "textile_handling/bench/stability_scan.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/output_files.h"
-#include "textile_handling/sim/stability_scenes.h"
 #include "textile_handling/sim/thread_limit.h"
 
 using namespace textile_handling;

@@ -42,7 +42,6 @@ TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions opti
   // directories).
   if (!parent.empty()) createDirectories(parent.string(), 0755);
   db_ = std::make_unique<db::HangingDrapeDatabase>(path_);
-  options_.build.progress = false;  // progress goes to the callback, not to a terminal
   worker_ = std::thread([this] { workerLoop(); });
 }
 

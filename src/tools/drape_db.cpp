@@ -30,12 +30,13 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "build_progress_printer.h"
+#include "textile_handling/bench/thesis_benchmark.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
-#include "textile_handling/db/thesis_benchmark.h"
 #include "textile_handling/sim/thread_limit.h"
 #include "textile_handling/vision/image_header.h"
 #include "textile_handling/vision/mask_cv.h"
@@ -243,7 +244,6 @@ int cmdBuild(const Args& a) {
   c.use_symmetry = !a.has("--no-symmetry");
   c.bracket_hold_points = a.has("--bracket");
   c.retry_failed = a.has("--retry-failed");
-  c.progress = !a.has("--quiet");
   if (a.has("--threads")) c.workers = threadCount(a.get("--threads"), "--threads");
   if (a.has("--sim-threads")) c.threads_per_simulation = threadCount(a.get("--sim-threads"), "--sim-threads");
   if (a.has("--memory-budget-mb")) {
@@ -302,6 +302,8 @@ int cmdBuild(const Args& a) {
   }
   c.require_rest = !a.has("--allow-no-rest");
 
+  tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
+  if (!a.has("--quiet")) progress.attach(c);
   HangingDrapeDatabase db(a.require("--db"));
   DrapeDatabaseBuilder builder(db, c);
   const DrapeBuildReport r = builder.build();
@@ -570,7 +572,9 @@ int cmdBench(const Args& a) {
   }
   if (a.has("--thesis-shift")) c.max_shift_x_m = c.max_shift_y_m = -1;
   if (a.has("--no-bracket")) c.bracket_hold_points = false;
-  runThesisBenchmark(c);
+  tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
+  c.prepare_build = [&progress](DrapeBuildConfig& build) { progress.attach(build); };
+  runThesisBenchmark(c);  // the benchmark library (bench/): drape_db only parses its options
   return kExitOk;
 }
 

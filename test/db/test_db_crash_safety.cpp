@@ -31,7 +31,6 @@ DrapeBuildConfig crashConfig() {
   c.lattice_spacing = 0.05;
   c.frame = vision::CanonicalFrame::fromMetric(0.5, 0.5, 64);
   c.workers = 1;
-  c.progress = false;
   return c;
 }
 

@@ -49,7 +49,6 @@ DrapeBuildConfig smallTowelConfig() {
   c.spacing = 0.03;
   c.lattice_spacing = 0.06;
   c.frame = vision::CanonicalFrame::fromMetric(0.6, 0.6, 64);
-  c.progress = false;
   return c;
 }
 

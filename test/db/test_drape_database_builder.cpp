@@ -10,6 +10,8 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <string>
+#include <vector>
 
 #include "../test_support.h"
 #include "textile_handling/db/drape_database_builder.h"
@@ -30,7 +32,6 @@ DrapeBuildConfig smallSquare() {
   c.spacing = 0.03;
   c.lattice_spacing = 0.10;
   c.frame = vision::CanonicalFrame::fromMetric(0.5, 0.5, 64);
-  c.progress = false;
   c.workers = 2;
   return c;
 }
@@ -278,7 +279,6 @@ TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {
   c.textile = presetTextile("towel");
   c.spacing = 0.04;  // 0.46 m is not a multiple of 4 cm: the particle grid is not mirror-symmetric in y
   c.lattice_spacing = 0.3;
-  c.progress = false;
   c.views.count = 4;
   c.views.step_deg = 90;
   DrapeDatabaseBuilder b(db, c);
@@ -293,11 +293,47 @@ TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {
   EXPECT_EQ(loadDrapeMatchIndex(db).classes.size(), 4u);
 }
 
-TEST(DrapeDatabaseBuilder, ProgressBar) {
-  EXPECT_EQ(formatProgressBar(0, 10, 0.0, 0, 10), "[>         ] 0/10 simulations  elapsed 00:00  ETA --:--");
-  EXPECT_EQ(formatProgressBar(5, 10, 62.0, 0, 10), "[=====>    ] 5/10 simulations  elapsed 01:02  ETA 01:02");
-  EXPECT_EQ(formatProgressBar(10, 10, 3725.0, 2, 10),
-            "[==========] 10/10 simulations (2 failed)  elapsed 1:02:05  ETA 00:00");
+TEST(DrapeDatabaseBuilder, ReportsPassesProgressAndFailuresThroughCallbacks) {
+  TempDatabase t("callbacks");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c = smallSquare();
+  c.settings.max_time = 0.02;  // every simulation fails quickly
+  c.retry_with_smaller_steps = false;
+  std::vector<std::string> events;
+  std::vector<DrapeBuildFailure> failures;
+  c.on_pass_start = [&](const DrapeBuildPass& p) {
+    events.push_back("start " + p.textile + " " + std::to_string(p.planned) + " " + std::to_string(p.to_simulate) + " " +
+                     std::to_string(p.already_done) + " " + std::to_string(p.to_run) + " " + p.symmetry);
+    EXPECT_EQ(p.bracket_corner, -1);
+    if (p.to_run > 0) EXPECT_EQ(p.workers, 2);  // a pass with nothing to run has one (idle) worker
+    EXPECT_TRUE(p.symmetric_grid);
+  };
+  c.on_progress = [&](int done, int total) { events.push_back(std::to_string(done) + "/" + std::to_string(total)); };
+  c.on_failure = [&](const DrapeBuildFailure& f) {
+    events.push_back("failed");
+    failures.push_back(f);
+  };
+  c.on_pass_end = [&](const DrapeBuildPass& p) { events.push_back("end " + std::to_string(p.to_run)); };
+  const DrapeBuildReport r = DrapeDatabaseBuilder(db, c).build();
+  ASSERT_EQ(r.failed_now, 9);
+  std::vector<std::string> expected = {"start square 25 9 0 9 xy"};
+  for (int k = 1; k <= 9; ++k) {
+    expected.push_back("failed");
+    expected.push_back(std::to_string(k) + "/9");
+  }
+  expected.push_back("end 9");
+  EXPECT_EQ(events, expected);
+  ASSERT_EQ(failures.size(), 9u);
+  for (const DrapeBuildFailure& f : failures) {
+    const SimulationRecord s = db.simulation(f.simulation_id);
+    EXPECT_EQ(s.failure_reason, f.reason);
+    EXPECT_LT((s.hold - f.hold).norm(), 1e-6);
+    EXPECT_NE(f.reason.find("no rest within max_time"), std::string::npos) << f.reason;
+  }
+  // A rebuild has nothing to run: a pass with to_run 0 and no progress calls.
+  events.clear();
+  DrapeDatabaseBuilder(db, c).build();
+  EXPECT_EQ(events, (std::vector<std::string>{"start square 25 9 0 0 xy", "end 0"}));
 }
 
 TEST(DrapeDatabaseBuilder, BracketHoldIsACornerOfTheGridCell) {

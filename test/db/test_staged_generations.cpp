@@ -29,7 +29,6 @@ DrapeBuildConfig tinySquare() {
   c.views.count = 8;
   c.views.step_deg = 45;
   c.frame = vision::CanonicalFrame::fromMetric(0.5, 0.5, 64);
-  c.progress = false;
   c.workers = 1;
   return c;
 }

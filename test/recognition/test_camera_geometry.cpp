@@ -14,7 +14,7 @@
 #include "textile_handling/recognition/camera_geometry.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/vision/mask_cv.h"
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 using namespace textile_handling;

@@ -51,7 +51,6 @@ class EvidenceTest : public ::testing::Test {
     c.frame = vision::CanonicalFrame::fromMetric(0.6, 0.6, 64);
     c.views.count = 12;
     c.views.step_deg = 30;
-    c.progress = false;
     c.workers = 2;
     db::DrapeDatabaseBuilder b(db, c);
     ASSERT_EQ(b.build().failed_now, 0);

@@ -13,7 +13,7 @@
 #include "textile_handling/recognition/point_cloud_segmentation.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/recognition/segmentation.h"
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 using namespace textile_handling;

@@ -50,7 +50,6 @@ db::DrapeBuildConfig baseConfig() {
   c.spacing = 0.03;
   c.lattice_spacing = 0.06;
   c.frame = vision::CanonicalFrame::fromMetric(0.6, 0.6, 64);
-  c.progress = false;
   c.workers = 2;
   return c;
 }

@@ -44,7 +44,7 @@
 #include <vector>
 
 #include "textile_handling/sim/drape_scene.h"
-#include "textile_handling/sim/stability_scenes.h"
+#include "textile_handling/bench/stability_scan.h"
 #include "textile_handling/sim/textile_geometry.h"
 
 #ifdef _OPENMP

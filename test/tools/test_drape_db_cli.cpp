@@ -42,7 +42,6 @@ class DrapeDbCli : public ::testing::Test {
     c.use_symmetry = false;
     c.views.count = 4;
     c.views.step_deg = 90;
-    c.progress = false;
     c.workers = 1;
     db::DrapeDatabaseBuilder b(database, c);
     ASSERT_EQ(b.build().failed_now, 0);

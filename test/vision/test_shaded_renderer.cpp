@@ -9,7 +9,7 @@
 #include <opencv2/core.hpp>
 #include <stdexcept>
 
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 
 namespace textile_handling {
 namespace vision {

@@ -11,7 +11,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
 namespace textile_handling {

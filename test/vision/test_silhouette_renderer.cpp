@@ -11,7 +11,7 @@
 #include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/vision/mask_cv.h"
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
 namespace textile_handling {

@@ -2,8 +2,9 @@
 // spacing s over the fundamental domain of the textile's mirror symmetry, edges and axes included, or
 // explicit points), simulates the fundamental-domain points in parallel, renders the silhouette views
 // of every result and derives the mirrored hold points by mirroring the final positions (and
-// re-rendering them). Resumable: a rebuild with the same settings skips done simulations. See
-// docs/database.md.
+// re-rendering them). Resumable: a rebuild with the same settings skips done simulations. Reports
+// only through DrapeBuildConfig's callbacks (the tools print them). See docs/database.md.
+// The builder library (textile_handling_db_builder); the store (textile_handling_db_core) does not use it.
 #pragma once
 
 #include <cstdint>
@@ -18,6 +19,31 @@
 
 namespace textile_handling {
 namespace db {
+
+namespace internal {
+struct PassPlan;
+}  // namespace internal
+
+/// One pass of a build, as reported to DrapeBuildConfig::on_pass_start / on_pass_end.
+struct DrapeBuildPass {
+  std::string textile;             ///< the textile's name
+  int bracket_corner = -1;         ///< 0..3: the bracket pass of that grid-cell corner; -1: nearest particle
+  int planned = 0;                 ///< rows (hold points) in the pass's plan
+  int to_simulate = 0;             ///< simulated (not mirrored) rows in the plan
+  int already_done = 0;            ///< simulated rows done before this build
+  int to_run = 0;                  ///< simulations this pass runs
+  int workers = 0;                 ///< worker threads of the pass
+  int threads_per_simulation = 1;  ///< OpenMP threads inside one simulation
+  std::string symmetry;            ///< "none", "x", "y", "xy" (as used)
+  bool symmetric_grid = false;     ///< mirrored rows derived rather than simulated
+};
+
+/// A simulation that failed, as reported to DrapeBuildConfig::on_failure.
+struct DrapeBuildFailure {
+  std::int64_t simulation_id = 0;  ///< the row marked failed
+  Vec2 hold = Vec2::Zero();        ///< its hold point in the textile frame [m]
+  std::string reason;              ///< why (also stored as the row's failure reason)
+};
 
 /// Everything a build needs. The simulation and view settings are stored with every simulation row
 /// (as canonical text, DrapeDatabaseBuilder::parametersText), so a rebuild with other settings plans
@@ -77,9 +103,20 @@ struct DrapeBuildConfig {
   int workers = 0;                  ///< simulations run at once (0 = hardware threads)
   int threads_per_simulation = 1;   ///< OpenMP threads inside one simulation
   bool retry_failed = false;        ///< reset failed rows to pending before building
-  bool progress = true;             ///< progress bar on stderr
-  /// Called after every finished simulation (from a worker thread, serialised).
+
+  // ---- reporting (the builder prints nothing; every callback is optional) ----
+  // A build runs one pass, or one per bracket corner (bracket_hold_points). The callbacks are called
+  // one at a time (serialised by the builder), from the calling thread or from a worker thread.
+  /// Called when a pass has planned its rows, before its first simulation starts.
+  std::function<void(const DrapeBuildPass& pass)> on_pass_start;
+  /// Called after every finished simulation, done or failed: `done` simulated rows of the pass are
+  /// done or failed (those done before the build included) of `total` (DrapeBuildPass::to_simulate).
   std::function<void(int done, int total)> on_progress;
+  /// Called for a simulation that failed (the row is marked failed), just before its on_progress call.
+  std::function<void(const DrapeBuildFailure& failure)> on_failure;
+  /// Called when a pass's workers have stopped (also when a database error ends the pass, before it is
+  /// thrown).
+  std::function<void(const DrapeBuildPass& pass)> on_pass_end;
   /// Polled before each simulation starts: true = finish the running simulations and return (the
   /// build is resumable). Used by services that must shut down promptly.
   std::function<bool()> should_stop;
@@ -141,7 +178,10 @@ class DrapeDatabaseBuilder {
   static DrapeSceneSpec sceneSpec(const DrapeBuildConfig& config, const Vec2& hold);
 
  private:
+  /// One pass: plans its rows (drape_build_plan.cpp) and runs its jobs (drape_build_worker.cpp) on
+  /// the worker threads.
   DrapeBuildReport buildPass(int corner, const std::vector<PlannedHoldPoint>& plan);
+  DrapeBuildPass passInfo(int corner, const internal::PassPlan& plan, int workers) const;
   /// The textile and generation the rows go to (DrapeBuildConfig::staged_textile_id).
   std::pair<std::int64_t, std::int64_t> targetTextile();
 
@@ -165,9 +205,6 @@ bool mirroredViews(const std::vector<ViewInput>& source, MirrorKind m, const std
 
 /// The mask flipped left-right (column x -> width - 1 - x).
 vision::BitMask flipLeftRight(const vision::BitMask& mask);
-
-/// Text progress bar: "[=====>    ]  12/36  elapsed 00:42  ETA 01:23". `width` is the bar width.
-std::string formatProgressBar(int done, int total, double elapsed_s, int failed = 0, int width = 30);
 
 }  // namespace db
 }  // namespace textile_handling

@@ -10,9 +10,11 @@
 // DrapeSimulation moves all pinned nodes along one common offset trajectory, so scene (a) holds the
 // static edge with stiff zero-length anchor springs (AnchoredClothModel, integrated implicitly like
 // every other force) and moves the other edge with the pins.
+//
+// The scans over step sizes and the stability.csv writer are in the benchmark library
+// (bench/include/textile_handling/bench/stability_scan.h).
 #pragma once
 
-#include <iosfwd>
 #include <memory>
 #include <string>
 #include <vector>
@@ -119,23 +121,5 @@ struct StabilityResult {
 
 /// Runs one scene with one model, step and damping setting. Throws std::invalid_argument on bad specs.
 StabilityResult runCompressionScene(const CompressionSceneSpec& scene, const StabilityRunSpec& run);
-
-/// One row of a stability table (the columns of DIR/stability.csv).
-struct StabilityRow {
-  std::string model;      ///< "choi_ko", "particle_kes" (a variant may append e.g. "/definite_fix")
-  std::string scene;      ///< toString(CompressionScene)
-  Real dt = 0;
-  bool damping = false;
-  StabilityResult result;
-};
-
-/// Runs `dts` (any order) for one model/scene/damping setting and returns one row per step.
-std::vector<StabilityRow> scanStability(const CompressionSceneSpec& scene, const StabilityRunSpec& run,
-                                        const std::vector<Real>& dts, const std::string& label = "");
-/// Largest dt whose row is stable (0 if none).
-Real largestStableDt(const std::vector<StabilityRow>& rows);
-/// Writes the rows as CSV with a header row: model,scene,dt_s,damping,stable,reason,sim_time_s,
-/// steps,peak_rms_speed_m_s,peak_edge_stretch,wall_s (damping and stable as 0/1).
-void writeStabilityCsv(std::ostream& os, const std::vector<StabilityRow>& rows);
 
 }  // namespace textile_handling

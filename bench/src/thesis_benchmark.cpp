@@ -1,4 +1,4 @@
-#include "textile_handling/db/thesis_benchmark.h"
+#include "textile_handling/bench/thesis_benchmark.h"
 
 #include <algorithm>
 #include <chrono>
@@ -13,11 +13,10 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 
 namespace textile_handling {
 namespace db {
@@ -141,13 +140,13 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   base.material = Material::cotton();
   base.spacing = cfg.spacing;
   base.workers = cfg.workers;
-  base.progress = cfg.progress;
   base.frame = benchmarkFrame(cfg);
   base.bracket_hold_points = cfg.bracket_hold_points;
   if (!(cfg.max_time_s > 0) || !std::isfinite(cfg.max_time_s)) throw std::invalid_argument("bench: max_time_s must be > 0");
   base.settings.max_time = cfg.max_time_s;
   const TextileSymmetry sym = detectSymmetry(base.textile);
   base.hold_points = fundamentalDomainGrid(base.textile, sym, nx, ny);
+  if (cfg.prepare_build) cfg.prepare_build(base);  // the held-out builds below start from copies of base
   log << "== database: towel 64 x 46 cm, cotton, d = " << cfg.spacing * 100 << " cm, "
       << (cfg.bracket_hold_points ? "hold points bracketed by the particles of their grid cells, " : "")
       << base.hold_points.size()

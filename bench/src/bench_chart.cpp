@@ -1,4 +1,4 @@
-#include "textile_handling/sim/bench_chart.h"
+#include "textile_handling/bench/bench_chart.h"
 
 #include "png_output.h"
 

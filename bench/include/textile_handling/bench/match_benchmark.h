@@ -1,6 +1,8 @@
 // Query-time benchmark of the silhouette matcher (used by `drape_db bench`). Builds a synthetic
 // database (procedural hanging-textile meshes rendered at 36 views, or random blobs) and times
-// single-threaded queries. Nothing here asserts timings. See docs/vision.md.
+// single-threaded queries. Nothing here asserts timings. See docs/vision.md. Part of the benchmark
+// library (textile_handling_bench, bench/); the procedural hanging shapes also serve the vision and
+// recognition tests.
 #pragma once
 
 #include <cstdint>

@@ -1,4 +1,4 @@
-#include "textile_handling/vision/match_benchmark.h"
+#include "textile_handling/bench/match_benchmark.h"
 
 #include <algorithm>
 #include <chrono>

@@ -7,12 +7,15 @@
 // the mirror images of the 36 points in random quadrants; camera renders between the stored view angles
 // with pixel noise; single-image and two-image accuracy, neighbour confusion, build and query times; and
 // the query time at 10 000 silhouettes. Writes DIR/match_benchmark.csv (+ confusion CSV and a summary).
+// Part of the benchmark library (textile_handling_bench, bench/), not of the database core.
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
+#include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/vision/silhouette_matcher.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
@@ -44,7 +47,9 @@ struct ThesisBenchmarkConfig {
   int pairs_per_shape = 4;     ///< image pairs per held-out shape
   int entries_10k = 10000;     ///< silhouettes of the query-time row
   std::uint64_t seed = 1;
-  bool progress = true;
+  /// Called on the configuration of each database build before it runs, e.g. to attach progress
+  /// callbacks (drape_db bench attaches its terminal progress bar). Empty: the builds report nothing.
+  std::function<void(DrapeBuildConfig&)> prepare_build;
 };
 
 struct BenchmarkRow {

@@ -1,0 +1,102 @@
+#include "build_progress_printer.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+
+#include "textile_handling/sim/timing.h"
+
+namespace textile_handling {
+namespace tools {
+
+namespace {
+
+std::string clockText(double s) {
+  if (!std::isfinite(s) || s < 0) return "--:--";
+  const long t = std::lround(s);
+  char buf[32];
+  if (t >= 3600)
+    std::snprintf(buf, sizeof buf, "%ld:%02ld:%02ld", t / 3600, (t / 60) % 60, t % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%02ld:%02ld", t / 60, t % 60);
+  return buf;
+}
+
+}  // namespace
+
+std::string formatProgressBar(int done, int total, double elapsed_s, int failed, int width) {
+  const double frac = total > 0 ? std::min(1.0, static_cast<double>(done) / total) : 1.0;
+  const int filled = static_cast<int>(std::floor(frac * width));
+  std::string bar = "[";
+  for (int k = 0; k < width; ++k) bar += k < filled ? '=' : (k == filled ? '>' : ' ');
+  if (filled >= width) bar.back() = '=';
+  bar += "]";
+  char buf[160];
+  const double eta = done > 0 && done < total ? elapsed_s / done * (total - done) : (done >= total ? 0.0 : -1.0);
+  std::snprintf(buf, sizeof buf, " %d/%d simulations%s  elapsed %s  ETA %s", done, total,
+                failed > 0 ? (" (" + std::to_string(failed) + " failed)").c_str() : "", clockText(elapsed_s).c_str(),
+                clockText(eta).c_str());
+  return bar + buf;
+}
+
+BuildProgressPrinter::BuildProgressPrinter(std::ostream& out, bool terminal) : out_(out), terminal_(terminal) {}
+
+BuildProgressPrinter BuildProgressPrinter::forStderr() { return BuildProgressPrinter(std::cerr, isatty(fileno(stderr)) != 0); }
+
+void BuildProgressPrinter::attach(db::DrapeBuildConfig& config) {
+  config.on_pass_start = [this](const db::DrapeBuildPass& p) { passStarted(p); };
+  config.on_progress = [this](int done, int total) { progress(done, total); };
+  config.on_failure = [this](const db::DrapeBuildFailure& f) { failed(f); };
+  config.on_pass_end = [this](const db::DrapeBuildPass& p) { passEnded(p); };
+}
+
+void BuildProgressPrinter::passStarted(const db::DrapeBuildPass& p) {
+  pass_ = p;
+  started_ = std::chrono::steady_clock::now();
+  done_ = p.already_done;
+  failed_ = 0;
+  last_printed_ = -1;
+  if (p.to_run == 0) return;  // nothing to run: no header, no bar
+  out_ << "drape_db: " << p.textile
+       << (p.bracket_corner >= 0
+               ? " (bracket corner " + std::to_string(p.bracket_corner) + " of the hold points' grid cells)"
+               : "")
+       << ": " << p.planned << " hold points (" << p.to_simulate << " simulated, symmetry " << p.symmetry
+       << (p.symmetric_grid ? "" : ", no mirroring") << "), " << p.already_done << " already done, " << p.to_run
+       << " to run on " << p.workers << " worker(s) x " << p.threads_per_simulation << " thread(s)\n";
+  printBar(false);
+}
+
+void BuildProgressPrinter::progress(int done, int total) {
+  done_ = done;
+  printBar(false);
+}
+
+void BuildProgressPrinter::failed(const db::DrapeBuildFailure& f) {
+  ++failed_;
+  if (terminal_) out_ << "\n";  // keep the bar line that was being redrawn
+  out_ << "drape_db: simulation " << f.simulation_id << " failed: " << f.reason << "\n";
+}
+
+void BuildProgressPrinter::passEnded(const db::DrapeBuildPass& p) {
+  if (p.to_run > 0) printBar(true);
+}
+
+void BuildProgressPrinter::printBar(bool final_line) {
+  const int completed = done_ - pass_.already_done;
+  const int runs = pass_.to_run;
+  const std::string bar = formatProgressBar(done_, pass_.to_simulate, secondsSince(started_), failed_);
+  if (terminal_) {
+    out_ << "\r" << bar << (final_line ? "\n" : "") << std::flush;
+  } else if ((final_line && completed != last_printed_) ||
+             (!final_line && (runs <= 20 || completed % std::max(1, runs / 20) == 0))) {
+    out_ << bar << "\n" << std::flush;
+    last_printed_ = completed;
+  }
+}
+
+}  // namespace tools
+}  // namespace textile_handling
