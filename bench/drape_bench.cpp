@@ -356,11 +356,11 @@ int benchMain(int argc, char** argv) {
           run.model = ClothModelSpec(model == "choi_ko" ? "choi_ko" : "particle_kes");
           run.damping = damping;
           if (model == "particle_kes/definite_fix") run.model.set("jacobian", "definite_fix");
-          const auto rows = scanStability(scene, run, dts, model);
+          const auto stability_rows = scanStability(scene, run, dts, model);
           std::printf("stability %-26s %-18s damping=%d largest stable dt = %.3f s\n", model.c_str(),
-                      toString(scene_kind).c_str(), damping, largestStableDt(rows));
+                      toString(scene_kind).c_str(), damping, largestStableDt(stability_rows));
           std::fflush(stdout);
-          all.insert(all.end(), rows.begin(), rows.end());
+          all.insert(all.end(), stability_rows.begin(), stability_rows.end());
         }
       }
     }

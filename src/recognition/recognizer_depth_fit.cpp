@@ -53,8 +53,9 @@ double depthResidual(const RecognitionRun& run, std::size_t depth_image, const V
     const float* pd = img.depth.ptr<float>(y);
     const float* md = im.depth_m.ptr<float>(y + iy0);
     const std::uint8_t* mk = im.mask.ptr<std::uint8_t>(y + iy0);
-    for (int x = 0; x < img.depth.cols; ++x)
-      if (mk[x + ix0] && std::isfinite(pd[x]) && std::isfinite(md[x + ix0])) diffs.push_back(std::abs(pd[x] - md[x + ix0]));
+    for (int col = 0; col < img.depth.cols; ++col)
+      if (mk[col + ix0] && std::isfinite(pd[col]) && std::isfinite(md[col + ix0]))
+        diffs.push_back(std::abs(pd[col] - md[col + ix0]));
   }
   if (static_cast<int>(diffs.size()) < ro.depth_min_pixels) return -1;
   double sum = 0;
@@ -95,13 +96,13 @@ bool fitMemberByDepth(const RecognitionRun& run, std::size_t depth_image, const 
       if (iou < floor_iou) return;
       const double r = depthResidual(run, depth_image, x, *sp, a);
       if (r < 0) return;
-      const double cost = (1.0 - iou) + ro.depth_weight_per_m * r;
-      if (cost < local_cost - 1e-12) {
-        local_cost = cost;
+      const double c = (1.0 - iou) + ro.depth_weight_per_m * r;
+      if (c < local_cost - 1e-12) {
+        local_cost = c;
         local_angle = a;
       }
-      if (cost < m_cost - 1e-12) {
-        m_cost = cost;
+      if (c < m_cost - 1e-12) {
+        m_cost = c;
         m_res = r;
         m_angle = wrapDegrees(a);
         m_iou = iou;

@@ -25,7 +25,6 @@ DrapeBuildConfig smallSquare(const ClothModelSpec& model) {
   c.frame = vision::CanonicalFrame::fromMetric(0.5, 0.5, 32);
   c.views.count = 4;
   c.views.step_deg = 90;
-  c.progress = false;
   c.workers = 1;
   c.model = model;
   return c;

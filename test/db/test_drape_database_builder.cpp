@@ -305,7 +305,9 @@ TEST(DrapeDatabaseBuilder, ReportsPassesProgressAndFailuresThroughCallbacks) {
     events.push_back("start " + p.textile + " " + std::to_string(p.planned) + " " + std::to_string(p.to_simulate) + " " +
                      std::to_string(p.already_done) + " " + std::to_string(p.to_run) + " " + p.symmetry);
     EXPECT_EQ(p.bracket_corner, -1);
-    if (p.to_run > 0) EXPECT_EQ(p.workers, 2);  // a pass with nothing to run has one (idle) worker
+    if (p.to_run > 0) {
+      EXPECT_EQ(p.workers, 2);  // a pass with nothing to run has one (idle) worker
+    }
     EXPECT_TRUE(p.symmetric_grid);
   };
   c.on_progress = [&](int done, int total) { events.push_back(std::to_string(done) + "/" + std::to_string(total)); };

@@ -200,8 +200,8 @@ Real elasticaChordAngleDeg(Real l_over_c) {
     const int n = 2000;
     const Real h = l / n;
     Eigen::Matrix<Real, 4, 1> y(0, k0, 0, 0);  // theta, theta', x, z
-    auto f = [l](Real s, const Eigen::Matrix<Real, 4, 1>& y) {
-      return Eigen::Matrix<Real, 4, 1>(y[1], -(l - s) * std::cos(y[0]), std::cos(y[0]), -std::sin(y[0]));
+    auto f = [l](Real s, const Eigen::Matrix<Real, 4, 1>& q) {
+      return Eigen::Matrix<Real, 4, 1>(q[1], -(l - s) * std::cos(q[0]), std::cos(q[0]), -std::sin(q[0]));
     };
     for (int i = 0; i < n; ++i) {
       const Real s = i * h;
