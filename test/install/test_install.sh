@@ -16,7 +16,7 @@
 #   demo              demo.launch with its installed default bag and installed printer, against a tiny
 #                     database built by the installed drape_db: the recognizer loads the database and the
 #                     printer prints a result (success or not: a 2x2 grid is too coarse to promise one)
-# Every step has a time limit; the whole test takes about 2 minutes.
+# Every step has a time limit; the whole test takes 2-3 minutes.
 # Usage: bash test/install/test_install.sh WORKSPACE RESULT_XML   (WORKSPACE built, e.g. .build/ws)
 set -uo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
@@ -93,17 +93,17 @@ run_case() {
   [ "$outcome" = ok ]
 }
 
-# ---- the checks (each runs in its own bash; `set -e` inside) -------------------------------------
+# ---- the checks (each runs in its own bash, which inherits no shell options: set -eo pipefail inside) ----
 
 check_install() {
-  set -e
+  set -eo pipefail
   cd "$WS"
   clean_env catkin_make install -DCMAKE_INSTALL_PREFIX="$PREFIX" -j1
   test -f "$PREFIX/setup.bash"
 }
 
 check_environment() {
-  set -e
+  set -eo pipefail
   found=$(in_prefix 'rospack find textile_handling')
   echo "rospack find textile_handling: $found"
   [ "$found" = "$SHARE" ] || { echo "expected $SHARE"; exit 1; }
@@ -126,7 +126,7 @@ check_environment() {
 }
 
 check_launch_files() {
-  set -e
+  set -eo pipefail
   bag="$SHARE/test/data/towel_replay_a.bag"
   specs=()
   for launch in "$SHARE"/launch/*.launch; do
@@ -138,7 +138,7 @@ check_launch_files() {
 }
 
 check_tools() {
-  set -e
+  set -eo pipefail
   in_prefix "'$BIN/drape_db' --help" 2>&1 | tee "$TMP/help.txt"
   grep -q "usage: drape_db" "$TMP/help.txt"
   # a tiny scene: the installed towel scene at d = 4 cm with the installed cotton material file
@@ -149,7 +149,7 @@ check_tools() {
 }
 
 check_downstream_build() {
-  set -e
+  set -eo pipefail
   mkdir -p "$TMP/consumer"
   # one source including every installed header: each must compile with the exported include directories
   (cd "$PREFIX/include" && find textile_handling -name '*.h' | sort | sed 's/.*/#include <&>/') > "$TMP/consumer/all_headers.cpp"
@@ -160,7 +160,7 @@ check_downstream_build() {
 }
 
 check_demo() {
-  set -e
+  set -eo pipefail
   db="$TMP/demo.sqlite"
   in_prefix "'$BIN/drape_db' build --db '$db' --textile towel --grid 2x2 --spacing 0.04 --threads 2 --quiet"
   port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
@@ -186,7 +186,7 @@ if ((install_ok)); then
   run_case launch_files 180 check_launch_files
   run_case tools 120 check_tools
   run_case downstream_build 300 check_downstream_build
-  run_case demo 240 check_demo
+  run_case demo 180 check_demo
 fi
 for o in "${OUTCOMES[@]}"; do [ "$o" = ok ] || exit 1; done
 exit 0
