@@ -2,6 +2,7 @@
 """Counts test cases in the JUnit XML files that catkin's run_tests wrote.
 
 - gtest-*.xml: one file per gtest suite; every test case counts.
+- script-*.xml: a test script run by scripts/test.sh (test/install/test_install.sh); every case counts.
 - MISSING-*.xml: written by catkin when a test produced no result file (a crash): one failure.
 - rosunit-<test-name>.xml: the gtest cases of a rostest's test node; every case counts.
 - rostest-*.xml: one summary case per <test> of a launch file ("test<test-name>"). It is not
@@ -55,7 +56,7 @@ def main(results_dir):
                 passed += 1
 
     for n in sorted(files):
-        if n.startswith("gtest-") or n.startswith("rosunit-"):
+        if n.startswith(("gtest-", "rosunit-", "script-")):
             count(n, cases_of(files[n]))
         elif n.startswith("MISSING-"):
             # catkin writes these when a test binary produced no results (crash, abort).
