@@ -18,6 +18,7 @@
 #include <omp.h>
 #endif
 
+#include "sim_test_support.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/integrators.h"
@@ -46,21 +47,7 @@ class OmpThreads {
   int previous_ = 1;
 };
 
-// A cotton square of side `side` [m] at spacing d, held at its upper-left corner ("corner") at
-// (0, 0, 1), released flat and at rest.
-DrapeSceneSpec squareSpec(Real side, Real d) {
-  TextileOutline t;
-  t.name = "test_square";
-  t.outline = {Vec2(0, 0), Vec2(side, 0), Vec2(side, side), Vec2(0, side)};
-  t.named_points = {NamedPoint{"corner", "corner", Vec2(0, side)}};
-  DrapeSceneSpec s;
-  s.textile = t;
-  s.material = Material::cotton();
-  s.spacing = d;
-  s.hold = {HoldPoint{"corner", Vec2::Zero()}};
-  s.hold_position = Vec3(0, 0, 1);
-  return s;
-}
+DrapeSceneSpec squareSpec(Real side, Real d) { return sim_test_support::heldSquareSpec(side, d); }
 
 Real maxAbs(const VecX& v) { return v.cwiseAbs().maxCoeff(); }
 

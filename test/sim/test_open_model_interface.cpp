@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "../test_support.h"
+#include "sim_test_support.h"
 #include "sliding_particle_model.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/drape_simulation.h"
@@ -22,17 +23,8 @@ using testing_models::SlidingParticleModel;
 using test_support::ThreadScope;
 using test_support::freshTempPath;
 
-DrapeSceneSpec squareSpec(const ClothModelSpec& model, Real side = 0.1, Real d = 0.02) {
-  TextileOutline t;
-  t.name = "test_square";
-  t.outline = {Vec2(0, 0), Vec2(side, 0), Vec2(side, side), Vec2(0, side)};
-  t.named_points = {NamedPoint{"corner", "corner", Vec2(0, side)}};
-  DrapeSceneSpec s;
-  s.textile = t;
-  s.material = Material::cotton();
-  s.spacing = d;
-  s.hold = {HoldPoint{"corner", Vec2::Zero()}};
-  s.hold_position = Vec3(0, 0, 1);
+DrapeSceneSpec squareSpec(const ClothModelSpec& model) {
+  DrapeSceneSpec s = sim_test_support::heldSquareSpec(0.1, 0.02);
   s.model = model;
   return s;
 }
