@@ -1,6 +1,7 @@
 #include "textile_handling/sim/drape_simulation.h"
 
 #include "textile_handling/sim/output_files.h"
+#include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/timing.h"
 
 #include <algorithm>
@@ -29,6 +30,23 @@ StepPolicy stepPolicyFromString(const std::string& s) {
   throw std::invalid_argument("unknown time-step policy '" + s + "' (expected fixed, thesis or error)");
 }
 
+namespace {
+// Each bad setting gets its own message naming the field and what it must be.
+void checkSettings(const SimulationSettings& s) {
+  std::string bad;
+  auto require = [&](bool ok, const char* field, Real value, const char* rule) {
+    if (!ok) bad += std::string(bad.empty() ? "" : "; ") + field + " = " + std::to_string(value) + " must be " + rule;
+  };
+  require(s.dt > 0 && std::isfinite(s.dt), "dt", s.dt, "finite and > 0");
+  require(s.dt_min > 0, "dt_min", s.dt_min, "> 0");
+  require(s.dt_max >= s.dt_min, "dt_max", s.dt_max, ">= dt_min");
+  require(s.max_time >= 0, "max_time", s.max_time, ">= 0");
+  require(s.error_tolerance > 0, "error_tolerance", s.error_tolerance, "> 0");
+  require(s.max_wall_time >= 0, "max_wall_time", s.max_wall_time, ">= 0 (0 = no cap)");
+  if (!bad.empty()) throw SimError("DrapeSimulation: " + bad);
+}
+}  // namespace
+
 DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, SimulationSettings settings, VecX x0,
                                  VecX v0)
     : model_(model),
@@ -40,10 +58,7 @@ DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, Simulation
       dt_(settings.dt) {
   if (x_.size() != model.numDofs() || v_.size() != model.numDofs())
     throw std::invalid_argument("DrapeSimulation: state size does not match the model");
-  if (!(settings.dt > 0) || !std::isfinite(settings.dt) || !(settings.dt_min > 0) ||
-      !(settings.dt_max >= settings.dt_min) || !(settings.max_time >= 0) || !(settings.error_tolerance > 0) ||
-      !(settings.max_wall_time >= 0))
-    throw std::invalid_argument("DrapeSimulation: time-step settings must be finite and positive");
+  checkSettings(settings);
   if (pins_.anchors.size() != pins_.nodes.size() || pins_.waypoint_times.size() != pins_.waypoint_offsets.size())
     throw std::invalid_argument("DrapeSimulation: pinned node lists have different lengths");
   for (Index p : pins_.nodes)

@@ -379,5 +379,22 @@ TEST(IntegratorNames, RoundTripAndRejectUnknown) {
   EXPECT_EQ(makeIntegrator(IntegratorType::kBlockDiagonalEuler)->type(), IntegratorType::kBlockDiagonalEuler);
 }
 
+TEST(DrapeSimulationSettings, EachBadSettingIsNamed) {
+  DrapeSceneSpec spec = squareSpec(0.1, 0.05);
+  DrapeScene scene = buildDrapeScene(spec);
+  SimulationSettings s;
+  s.dt = std::nan("");
+  s.error_tolerance = -1;
+  try {
+    DrapeSimulation sim(*scene.model, scene.pins, s, scene.x0, scene.v0);
+    ADD_FAILURE() << "accepted bad settings";
+  } catch (const SimError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("dt = "), std::string::npos) << what;
+    EXPECT_NE(what.find("error_tolerance = "), std::string::npos) << what;
+    EXPECT_EQ(what.find("max_time"), std::string::npos) << what;  // good fields are not named
+  }
+}
+
 }  // namespace
 }  // namespace textile_handling
