@@ -1,4 +1,5 @@
 #include "textile_handling/sim/block_sparse.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <stdexcept>
@@ -8,7 +9,7 @@ namespace textile_handling {
 BlockPattern::BlockPattern(Index num_nodes, int block,
                            const std::vector<std::pair<Index, Index>>& couplings)
     : num_nodes_(num_nodes), block_(block) {
-  if (num_nodes < 0 || block < 1) throw std::invalid_argument("BlockPattern: bad size");
+  if (num_nodes < 0 || block < 1) throw SimError("BlockPattern: bad size");
   std::vector<std::vector<Index>> rows(num_nodes);
   for (Index i = 0; i < num_nodes; ++i) rows[i].push_back(i);
   for (const auto& [i, j] : couplings) {

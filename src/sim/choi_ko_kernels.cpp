@@ -1,4 +1,5 @@
 #include "textile_handling/sim/choi_ko_kernels.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -125,7 +126,7 @@ BucklingLaw makeBucklingLaw(Real onset) {
   if (!(onset > 0 && onset < 1)) {
     std::ostringstream m;
     m << "Choi-Ko buckling onset s* must lie in (0, 1), got " << onset;
-    throw std::invalid_argument(m.str());
+    throw SimError(m.str());
   }
   BucklingLaw law;
   law.onset = onset;
@@ -216,7 +217,7 @@ BendingJacobian bendingJacobianFromString(const std::string& s) {
   if (s == "exact") return BendingJacobian::kExact;
   if (s == "drop_negative") return BendingJacobian::kDropNegative;
   if (s == "secant") return BendingJacobian::kSecant;
-  throw std::invalid_argument("unknown bending Jacobian '" + s + "' (expected exact, drop_negative or secant)");
+  throw SimError("unknown bending Jacobian '" + s + "' (expected exact, drop_negative or secant)");
 }
 
 Mat3 bendingJacobianBlock(const Vec3& unit, Real r, Real rest, Real f0, Real f, Real df, Real u, BendingJacobian mode) {
@@ -517,7 +518,7 @@ void hysteresisCommit(const HysteresisSpec& spec, HysteresisState& state, Real x
 
 HysteresisUnit::HysteresisUnit(HysteresisSpec spec) : spec_(std::move(spec)) {
   std::string error;
-  if (!spec_.valid(&error)) throw std::invalid_argument(error);
+  if (!spec_.valid(&error)) throw SimError(error);
   state_ = HysteresisState::initial(spec_);
 }
 

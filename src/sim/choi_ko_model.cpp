@@ -1,4 +1,5 @@
 #include "textile_handling/sim/choi_ko_model.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -21,7 +22,7 @@ std::string toString(ChoiKoBending b) { return b == ChoiKoBending::kBeam ? "beam
 ChoiKoBending choiKoBendingFromString(const std::string& s) {
   if (s == "beam") return ChoiKoBending::kBeam;
   if (s == "plate") return ChoiKoBending::kPlate;
-  throw std::invalid_argument("unknown Choi-Ko bending version '" + s + "' (expected beam or plate)");
+  throw SimError("unknown Choi-Ko bending version '" + s + "' (expected beam or plate)");
 }
 
 std::string toString(KesSlopeRule r) { return r == KesSlopeRule::kKesStandard ? "kes" : "initial"; }
@@ -29,7 +30,7 @@ std::string toString(KesSlopeRule r) { return r == KesSlopeRule::kKesStandard ? 
 KesSlopeRule kesSlopeRuleFromString(const std::string& s) {
   if (s == "kes") return KesSlopeRule::kKesStandard;
   if (s == "initial") return KesSlopeRule::kInitial;
-  throw std::invalid_argument("unknown KES slope rule '" + s + "' (expected kes or initial)");
+  throw SimError("unknown KES slope rule '" + s + "' (expected kes or initial)");
 }
 
 namespace {
@@ -49,7 +50,7 @@ bool positiveFinite(Real v) { return v > 0 && std::isfinite(v); }
 }  // namespace
 
 ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& o) {
-  auto bad = [](const std::string& m) { throw std::invalid_argument("ChoiKoClothModel: " + m); };
+  auto bad = [](const std::string& m) { throw SimError("ChoiKoClothModel: " + m); };
   if (!(o.tensile_stiffness >= 0) || !std::isfinite(o.tensile_stiffness)) bad("tensile_stiffness must be >= 0");
   if (!(o.shear_stiffness >= 0) || !std::isfinite(o.shear_stiffness)) bad("shear_stiffness must be >= 0");
   if (!(o.bending_rigidity_warp >= 0) || !std::isfinite(o.bending_rigidity_warp) ||
@@ -95,12 +96,12 @@ ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions&
 ChoiKoClothModel::ChoiKoClothModel(ParticleTopology topology, Material material, ChoiKoOptions options)
     : topo_(std::move(topology)), material_(std::move(material)), options_(std::move(options)) {
   std::string error;
-  if (!material_.validate(&error)) throw std::invalid_argument("ChoiKoClothModel: " + error);
-  if (!options_.hysteresis.valid(&error)) throw std::invalid_argument("ChoiKoClothModel: " + error);
+  if (!material_.validate(&error)) throw SimError("ChoiKoClothModel: " + error);
+  if (!options_.hysteresis.valid(&error)) throw SimError("ChoiKoClothModel: " + error);
   const Real d = topo_.spacing;
-  if (!positiveFinite(d)) throw std::invalid_argument("ChoiKoClothModel: bad spacing");
+  if (!positiveFinite(d)) throw SimError("ChoiKoClothModel: bad spacing");
   const Index n = topo_.size();
-  if (n < 1) throw std::invalid_argument("ChoiKoClothModel: no particles");
+  if (n < 1) throw SimError("ChoiKoClothModel: no particles");
   params_ = choiKoParameters(material_, options_);
   const bool hyst = options_.hysteresis.enabled();
 

@@ -1,5 +1,6 @@
 // Obstacle pass (planes, boxes, spheres) and the pass chain. See docs/collision.md.
 #include "textile_handling/sim/collision_obstacles.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +13,7 @@ namespace textile_handling {
 
 BoxObstacle BoxObstacle::axisAligned(const Vec3& lo, const Vec3& hi) {
   if (!lo.allFinite() || !hi.allFinite() || !(lo.array() <= hi.array()).all())
-    throw std::invalid_argument("BoxObstacle: need finite corners with lo <= hi");
+    throw SimError("BoxObstacle: need finite corners with lo <= hi");
   BoxObstacle b;
   b.centre = 0.5 * (lo + hi);
   b.half_extents = 0.5 * (hi - lo);
@@ -27,14 +28,14 @@ bool BoxObstacle::contains(const Vec3& p, Real margin) const {
 ObstaclePass::ObstaclePass(std::vector<char> pinned_mask, ObstacleOptions options)
     : pinned_(std::move(pinned_mask)), options_(options) {
   if (!(options_.contact_distance >= 0) || !std::isfinite(options_.contact_distance) || !(options_.friction >= 0))
-    throw std::invalid_argument("ObstaclePass: contact distance and friction must be finite and >= 0");
+    throw SimError("ObstaclePass: contact distance and friction must be finite and >= 0");
 }
 
 ObstaclePass::ObstaclePass(Index num_particles, const PinnedNodes& pins, ObstacleOptions options)
     : ObstaclePass(pinnedMask(num_particles, pins), options) {}
 
 void ObstaclePass::addPlane(const PlaneObstacle& p) {
-  if (!(p.normal.norm() > 0) || !p.point.allFinite()) throw std::invalid_argument("PlaneObstacle: bad plane");
+  if (!(p.normal.norm() > 0) || !p.point.allFinite()) throw SimError("PlaneObstacle: bad plane");
   PlaneObstacle q = p;
   q.normal.normalize();
   planes_.push_back(q);
@@ -42,14 +43,14 @@ void ObstaclePass::addPlane(const PlaneObstacle& p) {
 
 void ObstaclePass::addBox(const BoxObstacle& b) {
   if (!b.centre.allFinite() || !(b.half_extents.array() >= 0).all() || !b.rotation.allFinite())
-    throw std::invalid_argument("BoxObstacle: bad box");
+    throw SimError("BoxObstacle: bad box");
   const Mat3 rtr = b.rotation.transpose() * b.rotation;
-  if (!rtr.isApprox(Mat3::Identity(), 1e-9)) throw std::invalid_argument("BoxObstacle: rotation is not orthonormal");
+  if (!rtr.isApprox(Mat3::Identity(), 1e-9)) throw SimError("BoxObstacle: rotation is not orthonormal");
   boxes_.push_back(b);
 }
 
 void ObstaclePass::addSphere(const SphereObstacle& s) {
-  if (!s.centre.allFinite() || !(s.radius > 0)) throw std::invalid_argument("SphereObstacle: bad sphere");
+  if (!s.centre.allFinite() || !(s.radius > 0)) throw SimError("SphereObstacle: bad sphere");
   spheres_.push_back(s);
 }
 
@@ -71,7 +72,7 @@ void contactVelocity(Eigen::Map<Vec3> v, const Vec3& n, const Vec3& v_obstacle, 
 long ObstaclePass::apply(const VecX& x_old, VecX& x, VecX& v) {
   const Index n = static_cast<Index>(x.size() / 3);
   if (x_old.size() != x.size() || v.size() != x.size() || static_cast<Index>(pinned_.size()) != n)
-    throw std::invalid_argument("ObstaclePass: state size does not match the pinned mask");
+    throw SimError("ObstaclePass: state size does not match the pinned mask");
   const Real cd = options_.contact_distance, mu = options_.friction;
   long events = 0;
 #pragma omp parallel for schedule(static) reduction(+ : events) if (n >= 4096)

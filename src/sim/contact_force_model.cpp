@@ -1,5 +1,6 @@
 // Contact-force feedback of the proximity stage into the implicit solve. See docs/collision.md.
 #include "textile_handling/sim/contact_force_model.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -15,13 +16,13 @@ namespace textile_handling {
 ContactForceModel::ContactForceModel(std::unique_ptr<ClothModel> base, SelfCollisionPass& pass)
     : owned_(std::move(base)), base_(*owned_), pass_(pass) {
   if (base_.numNodes() != pass_.triangles().num_vertices || base_.dofsPerNode() != 3)
-    throw std::invalid_argument("ContactForceModel: the model does not match the self-collision pass");
+    throw SimError("ContactForceModel: the model does not match the self-collision pass");
   pass_.force_feedback_ = true;
 }
 
 ContactForceModel::ContactForceModel(ClothModel& base, SelfCollisionPass& pass) : base_(base), pass_(pass) {
   if (base_.numNodes() != pass_.triangles().num_vertices || base_.dofsPerNode() != 3)
-    throw std::invalid_argument("ContactForceModel: the model does not match the self-collision pass");
+    throw SimError("ContactForceModel: the model does not match the self-collision pass");
   pass_.force_feedback_ = true;
 }
 

@@ -27,7 +27,7 @@ StepPolicy stepPolicyFromString(const std::string& s) {
   if (s == "fixed") return StepPolicy::kFixed;
   if (s == "thesis") return StepPolicy::kThesis;
   if (s == "error") return StepPolicy::kErrorControlled;
-  throw std::invalid_argument("unknown time-step policy '" + s + "' (expected fixed, thesis or error)");
+  throw SimError("unknown time-step policy '" + s + "' (expected fixed, thesis or error)");
 }
 
 namespace {
@@ -57,12 +57,12 @@ DrapeSimulation::DrapeSimulation(ClothModel& model, PinnedNodes pins, Simulation
       v_(std::move(v0)),
       dt_(settings.dt) {
   if (x_.size() != model.numDofs() || v_.size() != model.numDofs())
-    throw std::invalid_argument("DrapeSimulation: state size does not match the model");
+    throw SimError("DrapeSimulation: state size does not match the model");
   checkSettings(settings);
   if (pins_.anchors.size() != pins_.nodes.size() || pins_.waypoint_times.size() != pins_.waypoint_offsets.size())
-    throw std::invalid_argument("DrapeSimulation: pinned node lists have different lengths");
+    throw SimError("DrapeSimulation: pinned node lists have different lengths");
   for (Index p : pins_.nodes)
-    if (p < 0 || p >= model.numNodes()) throw std::invalid_argument("DrapeSimulation: pinned node out of range");
+    if (p < 0 || p >= model.numNodes()) throw SimError("DrapeSimulation: pinned node out of range");
   total_mass_ = model.totalMass();
   resetEnergyBudget();
 }

@@ -1,4 +1,5 @@
 #include "textile_handling/sim/integrators.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <Eigen/LU>
 #include <Eigen/SparseCholesky>
@@ -27,7 +28,7 @@ IntegratorType integratorFromString(const std::string& s) {
   if (s == "rk4") return IntegratorType::kRK4;
   if (s == "semi_implicit") return IntegratorType::kSemiImplicitEuler;
   if (s == "block_diagonal") return IntegratorType::kBlockDiagonalEuler;
-  throw std::invalid_argument("unknown integrator '" + s + "' (expected rk4, semi_implicit or block_diagonal)");
+  throw SimError("unknown integrator '" + s + "' (expected rk4, semi_implicit or block_diagonal)");
 }
 
 std::string toString(LinearSolverKind k) {
@@ -41,7 +42,7 @@ std::string toString(LinearSolverKind k) {
 LinearSolverKind linearSolverFromString(const std::string& s) {
   if (s == "cg") return LinearSolverKind::kCG;
   if (s == "direct") return LinearSolverKind::kDirect;
-  throw std::invalid_argument("unknown linear solver '" + s + "' (expected cg or direct)");
+  throw SimError("unknown linear solver '" + s + "' (expected cg or direct)");
 }
 
 std::string toString(PreconditionerKind k) {
@@ -55,7 +56,7 @@ std::string toString(PreconditionerKind k) {
 PreconditionerKind preconditionerFromString(const std::string& s) {
   if (s == "block_jacobi") return PreconditionerKind::kBlockJacobi;
   if (s == "two_level") return PreconditionerKind::kTwoLevel;
-  throw std::invalid_argument("unknown preconditioner '" + s + "' (expected block_jacobi or two_level)");
+  throw SimError("unknown preconditioner '" + s + "' (expected block_jacobi or two_level)");
 }
 
 Vec3 PinnedNodes::offset(Real t) const {
@@ -786,7 +787,7 @@ std::unique_ptr<Integrator> makeIntegrator(IntegratorType type, const SolverSett
     case IntegratorType::kSemiImplicitEuler: return std::make_unique<SemiImplicitEuler>(solver);
     case IntegratorType::kBlockDiagonalEuler: return std::make_unique<BlockDiagonalEuler>(solver);
   }
-  throw std::invalid_argument("unknown integrator");
+  throw SimError("unknown integrator");
 }
 
 }  // namespace textile_handling

@@ -1,4 +1,5 @@
 #include "textile_handling/sim/particle_cloth_model.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,13 +14,13 @@ ParticleClothModel::ParticleClothModel(ParticleTopology topology, Material mater
                                        ParticleModelOptions options)
     : topo_(std::move(topology)), material_(std::move(material)), options_(options) {
   std::string error;
-  if (!material_.validate(&error)) throw std::invalid_argument("ParticleClothModel: " + error);
+  if (!material_.validate(&error)) throw SimError("ParticleClothModel: " + error);
   const Real d = topo_.spacing;
-  if (!(d > 0) || !std::isfinite(d)) throw std::invalid_argument("ParticleClothModel: bad spacing");
+  if (!(d > 0) || !std::isfinite(d)) throw SimError("ParticleClothModel: bad spacing");
   if (!(options_.settle_damping >= 0) || !std::isfinite(options_.settle_damping))
-    throw std::invalid_argument("ParticleClothModel: settle_damping must be finite and >= 0");
+    throw SimError("ParticleClothModel: settle_damping must be finite and >= 0");
   const Index n = topo_.size();
-  if (n < 1) throw std::invalid_argument("ParticleClothModel: no particles");
+  if (n < 1) throw SimError("ParticleClothModel: no particles");
   c0_ = d * d * material_.tension_stiffness / 5.0;
   mass_.resize(3 * n);
   drag_coeff_.resize(n);

@@ -1,5 +1,6 @@
 // Names, parsing and checking of the self-collision options; summing of the statistics.
 #include "textile_handling/sim/self_collision_options.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <cmath>
 #include <sstream>
@@ -20,7 +21,7 @@ SelfCollisionVersion selfCollisionVersionFromString(const std::string& s) {
   if (s == "1" || s == "v1" || s == "point_path" || s == "v1_point_path") return SelfCollisionVersion::kPointPath;
   if (s == "2" || s == "v2" || s == "edge" || s == "v2_edge") return SelfCollisionVersion::kEdge;
   if (s == "3" || s == "v3" || s == "rollback" || s == "v3_rollback") return SelfCollisionVersion::kRollback;
-  throw std::invalid_argument("unknown self-collision version '" + s + "' (expected v1, v2 or v3)");
+  throw SimError("unknown self-collision version '" + s + "' (expected v1, v2 or v3)");
 }
 
 void SelfCollisionStats::add(const SelfCollisionStats& o) {
@@ -68,7 +69,7 @@ void validateSelfCollisionOptions(const SelfCollisionOptions& o, const std::stri
   check(o.candidate_list_margin >= 0 && o.candidate_list_margin <= 4, "candidate_list_margin", o.candidate_list_margin,
         "[0, 4]");
   check(o.proximity_iterations >= 1, "proximity_iterations", o.proximity_iterations, ">= 1");
-  if (!bad.str().empty()) throw std::invalid_argument(what + ": invalid options:" + bad.str());
+  if (!bad.str().empty()) throw SimError(what + ": invalid options:" + bad.str());
 }
 
 }  // namespace textile_handling

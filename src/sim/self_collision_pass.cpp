@@ -1,6 +1,7 @@
 // Construction of the self-collision pass (adjacency, masses, broad-phase cells) and apply(), which
 // runs the configured version. See docs/collision.md.
 #include "textile_handling/sim/self_collision_pass.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -18,10 +19,10 @@ SelfCollisionPass::SelfCollisionPass(ClothTriangles tris, std::vector<char> pinn
     : tris_(std::move(tris)), pinned_(std::move(pinned_mask)), options_(options) {
   if (pinned_.empty()) pinned_.assign(static_cast<size_t>(tris_.num_vertices), 0);
   if (static_cast<Index>(pinned_.size()) != tris_.num_vertices)
-    throw std::invalid_argument("SelfCollisionPass: pinned mask size differs from the particle count");
+    throw SimError("SelfCollisionPass: pinned mask size differs from the particle count");
   validateSelfCollisionOptions(options_);
   if (!tris_.vertex_mass.empty() && static_cast<Index>(tris_.vertex_mass.size()) != tris_.num_vertices)
-    throw std::invalid_argument("SelfCollisionPass: vertex_mass size differs from the particle count");
+    throw SimError("SelfCollisionPass: vertex_mass size differs from the particle count");
   // Each edge is owned by the first triangle that contains it; edges in no triangle are orphans.
   std::vector<char> owned(tris_.edges.size(), 0);
   owned_start_.assign(tris_.triangles.size() + 1, 0);
@@ -163,7 +164,7 @@ SelfCollisionPass::SelfCollisionPass(const ParticleTopology& topo, const PinnedN
 long SelfCollisionPass::apply(const VecX& x_old, VecX& x, VecX& v) {
   const Index n3 = 3 * tris_.num_vertices;
   if (x_old.size() != n3 || x.size() != n3 || v.size() != n3)
-    throw std::invalid_argument("SelfCollisionPass: state size does not match the triangulation");
+    throw SimError("SelfCollisionPass: state size does not match the triangulation");
   SelfCollisionStats st;
   long events = 0;
   if (!tris_.triangles.empty()) {

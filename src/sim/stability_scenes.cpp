@@ -1,4 +1,5 @@
 #include "textile_handling/sim/stability_scenes.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,11 +15,11 @@ namespace textile_handling {
 AnchoredClothModel::AnchoredClothModel(ClothModel& inner, std::vector<Index> nodes, std::vector<Vec3> anchors,
                                        Real stiffness)
     : inner_(inner), nodes_(std::move(nodes)), anchors_(std::move(anchors)), k_(stiffness) {
-  if (nodes_.size() != anchors_.size()) throw std::invalid_argument("AnchoredClothModel: nodes and anchors differ in length");
-  if (!(k_ >= 0) || !std::isfinite(k_)) throw std::invalid_argument("AnchoredClothModel: stiffness must be finite and >= 0");
-  if (inner_.dofsPerNode() != 3) throw std::invalid_argument("AnchoredClothModel: needs 3 DOFs per node");
+  if (nodes_.size() != anchors_.size()) throw SimError("AnchoredClothModel: nodes and anchors differ in length");
+  if (!(k_ >= 0) || !std::isfinite(k_)) throw SimError("AnchoredClothModel: stiffness must be finite and >= 0");
+  if (inner_.dofsPerNode() != 3) throw SimError("AnchoredClothModel: needs 3 DOFs per node");
   for (Index p : nodes_)
-    if (p < 0 || p >= inner_.numNodes()) throw std::invalid_argument("AnchoredClothModel: node out of range");
+    if (p < 0 || p >= inner_.numNodes()) throw SimError("AnchoredClothModel: node out of range");
 }
 
 ForceReport AnchoredClothModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
@@ -44,7 +45,7 @@ std::string toString(CompressionScene s) {
 CompressionScene compressionSceneFromString(const std::string& s) {
   if (s == "pushed_edges") return CompressionScene::kPushedEdges;
   if (s == "lowered_onto_table") return CompressionScene::kLoweredOntoTable;
-  throw std::invalid_argument("unknown compression scene '" + s + "' (expected pushed_edges or lowered_onto_table)");
+  throw SimError("unknown compression scene '" + s + "' (expected pushed_edges or lowered_onto_table)");
 }
 
 namespace {
@@ -70,15 +71,15 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   if (!(sc.side > 0) || !(sc.spacing > 0) || !(sc.spacing < sc.side) || !(sc.hold_time >= 0) ||
       !std::isfinite(sc.perturbation) || !std::isfinite(sc.noise) || !(sc.push_time > 0) || !(sc.lower_time > 0) || !(sc.table_gap >= 0) ||
       !(sc.table_friction >= 0) || !(sc.anchor_stiffness > 0))
-    throw std::invalid_argument("compression scene: sizes and times must be positive");
-  if (!(run.dt > 0) || !std::isfinite(run.dt)) throw std::invalid_argument("stability run: dt must be positive");
+    throw SimError("compression scene: sizes and times must be positive");
+  if (!(run.dt > 0) || !std::isfinite(run.dt)) throw SimError("stability run: dt must be positive");
 
   TextileOutline outline;
   outline.name = "square";
   outline.outline = {Vec2(0, 0), Vec2(sc.side, 0), Vec2(sc.side, sc.side), Vec2(0, sc.side)};
   std::string error;
   const ParticleGrid grid = ParticleGrid::rasterize(outline, sc.spacing, &error);
-  if (grid.empty()) throw std::invalid_argument("compression scene: " + error);
+  if (grid.empty()) throw SimError("compression scene: " + error);
   const ParticleTopology topo = ParticleTopology::fromGrid(grid);
   const Index n = grid.numActive();
   const bool pushed = sc.scene == CompressionScene::kPushedEdges;

@@ -1,6 +1,7 @@
 // Flat textile outlines, validation and particle-grid rasterisation.
 // See textile_geometry.h for the contracts; all lengths in metres.
 #include "textile_handling/sim/textile_geometry.h"
+#include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
 #include <cmath>
@@ -514,7 +515,7 @@ bool buildFullOutline(const TextileOutline& textile, std::vector<Vec2>* full, st
 std::vector<Vec2> fullOutline(const TextileOutline& textile) {
   std::vector<Vec2> full;
   std::string error;
-  if (!buildFullOutline(textile, &full, &error)) throw std::invalid_argument(error);
+  if (!buildFullOutline(textile, &full, &error)) throw SimError(error);
   return full;
 }
 
@@ -667,14 +668,14 @@ Index ParticleGrid::neighbour(Index compact, int dir) const {
 std::vector<Vec2> holdPointLattice(const TextileOutline& textile, Real lattice_spacing) {
   const Real s = lattice_spacing;
   if (!std::isfinite(s) || s <= 0) {
-    throw std::invalid_argument("holdPointLattice: lattice spacing must be finite and > 0 m, got " + formatReal(s));
+    throw SimError("holdPointLattice: lattice spacing must be finite and > 0 m, got " + formatReal(s));
   }
   const std::vector<Vec2> polygon = fullOutline(textile);
   const BoundingBox box = boundingBox(polygon);
   const double lines_x = std::floor((box.max.x() - box.min.x()) / s) + 2;
   const double lines_y = std::floor((box.max.y() - box.min.y()) / s) + 2;
   if (lines_x * lines_y > kMaxHoldPoints) {
-    throw std::invalid_argument("holdPointLattice: lattice spacing " + formatReal(s) + " m is too small for textile '" +
+    throw SimError("holdPointLattice: lattice spacing " + formatReal(s) + " m is too small for textile '" +
                                 textile.name + "' (more than " + formatReal(kMaxHoldPoints) + " points)");
   }
 
@@ -741,7 +742,7 @@ TextileOutline presetTextile(const std::string& name) {
 
   std::string known;
   for (const std::string& n : presetTextileNames()) known += (known.empty() ? "" : ", ") + n;
-  throw std::invalid_argument("unknown textile preset '" + name + "'; known presets: " + known);
+  throw SimError("unknown textile preset '" + name + "'; known presets: " + known);
 }
 
 std::vector<std::string> presetTextileNames() { return {"towel", "square", "tablecloth", "tshirt"}; }
