@@ -55,26 +55,25 @@ SimulationResult simulateRow(const PassContext& ctx, const BuildJob& job, std::s
         spec.settings.dt = std::min(spec.settings.dt, spec.settings.dt_max);
       }
       DrapeScene scene = buildDrapeScene(spec);
-      DrapeSimulation sim(*scene.model, scene.pins, scene.spec.settings, scene.x0, scene.v0);
-      sim.setPostStepPass(scene.postStepPass());
-      const RunResult r = sim.run();
-      wall += r.wall_time;
+      // The first attempt uses the build's rest-shape method (which itself falls back to the dynamic
+      // run if its quasi-static finish fails); the retry is dynamic, with smaller steps.
+      RestShapeSettings method = c.rest_shape;
+      if (attempt == 1) method.method = RestShapeMethod::kDynamic;
+      const RestShapeResult rs = findRestShape(scene, method);
+      wall += rs.wall_seconds;
       std::string why;
-      if (r.diverged)
-        why = "diverged at t = " + fmt17(r.divergence_time) + " s: " + r.divergence_reason;
-      else if (!r.rest_reached && c.require_rest)
-        why = "no rest within max_time " + fmt17(spec.settings.max_time) + " s";
+      if (rs.diverged || (!rs.rest_reached && c.require_rest)) why = rs.failure;
       if (!why.empty()) {
         *failure += (failure->empty() ? "" : "; retry with dt_max " + fmt17(spec.settings.dt_max) + " s: ") + why;
         continue;
       }
       failure->clear();
-      src.positions = sim.positions();
-      src.rest_reached = r.rest_reached;
-      src.sim_time_s = r.sim_time;
+      src.positions = rs.positions;
+      src.rest_reached = rs.rest_reached;
+      src.sim_time_s = rs.sim_time;
       src.wall_time_s = wall;
-      src.steps = r.steps;
-      src.rejected_steps = r.rejected_steps;
+      src.steps = rs.steps;
+      src.rejected_steps = rs.rejected_steps;
       src.held_particle = scene.hold_particle;
       src.hanging_depth_m = hangingDepth(src.positions, scene.hold_particle);
       src.projection = ctx.projection;

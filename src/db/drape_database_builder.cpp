@@ -152,6 +152,9 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   }
   // Only when on, so that the parameter texts of builds without collision stay as they were.
   if (c.self_collision) t += "self_collision: v3\n";
+  // Only for the quasi-static method (dynamic builds keep their former texts); it never applies with
+  // self-collision (rest_shape_search.h), so those builds are dynamic and keep theirs too.
+  if (c.rest_shape.method == RestShapeMethod::kQuasiStatic && !c.self_collision) t += c.rest_shape.text() + "\n";
   if (bracket_corner >= 0) t += "hold_bracket: " + std::to_string(bracket_corner) + "\n";
   return t;
 }
@@ -204,7 +207,7 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
   if (c.hold_points.empty() && !(c.lattice_spacing > 0 && std::isfinite(c.lattice_spacing)))
     throw InvalidInputError("build: lattice spacing must be finite and > 0");
   if (c.workers < 0) throw InvalidInputError("build: workers must be >= 0");
-  if (c.threads_per_simulation < 1) throw InvalidInputError("build: threads per simulation must be >= 1");
+  if (c.threads_per_simulation < 0) throw InvalidInputError("build: threads per simulation must be >= 0 (0 = automatic)");
   try {
     c.frame.validate();
     (void)c.views.angles();
@@ -323,9 +326,14 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
                                   c.projection.type == vision::ProjectionType::kOrthographic ? "orthographic"
                                                                                              : "pinhole"};
   const std::vector<internal::BuildJob>& jobs = pp.jobs;
-  int workers = c.workers > 0 ? c.workers : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  // Automatic parallelism: one worker per core (no more than there are jobs), and the cores a short
+  // job list leaves idle go to the simulations' OpenMP threads: never more threads than cores.
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  int workers = c.workers > 0 ? c.workers : cores;
   workers = std::max(1, std::min(workers, static_cast<int>(jobs.size())));
-  const DrapeBuildPass pass = passInfo(corner, pp, workers);
+  const int threads = c.threads_per_simulation > 0 ? c.threads_per_simulation : std::max(1, cores / workers);
+  DrapeBuildPass pass = passInfo(corner, pp, workers);
+  pass.threads_per_simulation = threads;
   if (c.on_pass_start) c.on_pass_start(pass);
 
   std::mutex mu;  // the job queue, the report and the callbacks
@@ -334,7 +342,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   std::exception_ptr fatal;
   bool stop = false;
   auto worker = [&]() {
-    omp_set_num_threads(c.threads_per_simulation);
+    omp_set_num_threads(threads);
     for (;;) {
       const internal::BuildJob* job = nullptr;
       {

@@ -2,7 +2,6 @@
 #include "textile_handling/sim/sim_errors.h"
 
 #include <Eigen/LU>
-#include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <algorithm>
 #include <chrono>
@@ -12,6 +11,7 @@
 
 #include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/timing.h"
+#include "sparse_ldlt.h"
 
 namespace textile_handling {
 
@@ -182,75 +182,6 @@ class ImplicitEulerBase : public Integrator {
 };
 
 using Clock = std::chrono::steady_clock;
-
-// Sparse LDL^T of a BSR matrix. DOFs marked in `dof_pinned` get identity rows and columns, so the
-// scalar pattern (and the fill-reducing ordering, computed once) never changes.
-class DirectSolver {
- public:
-  using SpMat = Eigen::SparseMatrix<Real, Eigen::ColMajor, int>;
-
-  // Builds the lower-triangular scalar pattern of a BSR pattern and the map to the BSR values.
-  void setPattern(const BlockPattern& p) {
-    const int b = p.blockSize();
-    const Index dofs = p.numNodes() * b;
-    std::vector<Eigen::Triplet<Real, int>> tr;
-    const auto& rs = p.rowStart();
-    const auto& col = p.column();
-    for (Index i = 0; i < p.numNodes(); ++i)
-      for (Index k = rs[i]; k < rs[i + 1]; ++k)
-        for (int r = 0; r < b; ++r)
-          for (int c = 0; c < b; ++c) {
-            const Index R = i * b + r, C = col[k] * b + c;
-            if (R >= C) tr.emplace_back(R, C, static_cast<Real>(static_cast<size_t>(k) * b * b + r * b + c + 1));
-          }
-    lower_.resize(dofs, dofs);
-    lower_.setFromTriplets(tr.begin(), tr.end());
-    lower_.makeCompressed();
-    map_.resize(lower_.nonZeros());
-    row_of_.resize(lower_.nonZeros());
-    col_of_.resize(lower_.nonZeros());
-    for (Index c = 0; c < dofs; ++c)
-      for (int k = lower_.outerIndexPtr()[c]; k < lower_.outerIndexPtr()[c + 1]; ++k) {
-        map_[k] = static_cast<size_t>(lower_.valuePtr()[k]) - 1;
-        row_of_[k] = lower_.innerIndexPtr()[k];
-        col_of_[k] = c;
-      }
-    analysed_ = false;
-  }
-
-  // Copies the values (pinned DOFs decoupled; `dof_pinned` empty = none) and factorises.
-  bool factorize(const BlockSparseMatrix& A, const std::vector<char>& dof_pinned) {
-    const auto& v = A.values();
-    Real* out = lower_.valuePtr();
-    const Index nnz = static_cast<Index>(map_.size());
-    const bool any_pinned = !dof_pinned.empty();
-#pragma omp parallel for schedule(static)
-    for (Index k = 0; k < nnz; ++k) {
-      const Index r = row_of_[k], c = col_of_[k];
-      if (any_pinned && (dof_pinned[r] || dof_pinned[c])) out[k] = r == c ? 1.0 : 0.0;
-      else out[k] = v[map_[k]];
-    }
-    if (!analysed_) {
-      ldlt_.analyzePattern(lower_);
-      analysed_ = true;
-    }
-    ldlt_.factorize(lower_);
-    if (ldlt_.info() != Eigen::Success || !ldlt_.vectorD().allFinite()) return false;
-    negative_pivots_ = static_cast<Index>((ldlt_.vectorD().array() <= 0).count());
-    return true;
-  }
-  /// Non-positive pivots of the last factorisation (0 = the matrix is positive definite).
-  Index negativePivots() const { return negative_pivots_; }
-  void solve(const VecX& b, VecX& x) const { x = ldlt_.solve(b); }
-
- private:
-  SpMat lower_;
-  std::vector<size_t> map_;
-  std::vector<Index> row_of_, col_of_;
-  Eigen::SimplicialLDLT<SpMat, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt_;
-  bool analysed_ = false;
-  Index negative_pivots_ = 0;
-};
 
 // Block-Jacobi: inverses of the diagonal blocks of the free nodes (pinned nodes give zero).
 class BlockJacobi {
@@ -454,7 +385,7 @@ class TwoLevel {
   BlockSparseMatrix coarse_;
   std::vector<Index> gather_start_;
   std::vector<std::pair<Index, Index>> gather_;
-  DirectSolver solver_;
+  BlockSparseLdlt solver_;
   VecX rc_, zc_;
 };
 
@@ -659,7 +590,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
   bool additive_only_ = false;
   BlockJacobi jacobi_;
   TwoLevel two_level_;
-  DirectSolver direct_;
+  BlockSparseLdlt direct_;
   std::vector<char> dof_pinned_;
   VecX Ap_, z_, p_, t_, prev_y_;
   Real prev_h_ = 0;

@@ -27,7 +27,7 @@ std::string clockText(double s) {
 
 }  // namespace
 
-std::string formatProgressBar(int done, int total, double elapsed_s, int failed, int width) {
+std::string formatProgressBar(int done, int total, double elapsed_s, int failed, int width, int done_before) {
   const double frac = total > 0 ? std::min(1.0, static_cast<double>(done) / total) : 1.0;
   const int filled = static_cast<int>(std::floor(frac * width));
   std::string bar = "[";
@@ -35,7 +35,8 @@ std::string formatProgressBar(int done, int total, double elapsed_s, int failed,
   if (filled >= width) bar.back() = '=';
   bar += "]";
   char buf[160];
-  const double eta = done > 0 && done < total ? elapsed_s / done * (total - done) : (done >= total ? 0.0 : -1.0);
+  const int completed = done - done_before;
+  const double eta = done >= total ? 0.0 : (completed > 0 ? elapsed_s / completed * (total - done) : -1.0);
   std::snprintf(buf, sizeof buf, " %d/%d simulations%s  elapsed %s  ETA %s", done, total,
                 failed > 0 ? (" (" + std::to_string(failed) + " failed)").c_str() : "", clockText(elapsed_s).c_str(),
                 clockText(eta).c_str());
@@ -88,7 +89,7 @@ void BuildProgressPrinter::passEnded(const db::DrapeBuildPass& p) {
 void BuildProgressPrinter::printBar(bool final_line) {
   const int completed = done_ - pass_.already_done;
   const int runs = pass_.to_run;
-  const std::string bar = formatProgressBar(done_, pass_.to_simulate, secondsSince(started_), failed_);
+  const std::string bar = formatProgressBar(done_, pass_.to_simulate, secondsSince(started_), failed_, 30, pass_.already_done);
   if (terminal_) {
     out_ << "\r" << bar << (final_line ? "\n" : "") << std::flush;
   } else if ((final_line && completed != last_printed_) ||

@@ -15,7 +15,9 @@ namespace tools {
 
 /// Text progress bar: "[=====>    ]  12/36 simulations  elapsed 00:42  ETA 01:23", with
 /// " (N failed)" after the counts when `failed` > 0. `width` is the bar width in characters.
-std::string formatProgressBar(int done, int total, double elapsed_s, int failed = 0, int width = 30);
+/// `done_before` of the `done` were done before this build started (a resumed build): the ETA is the
+/// remaining count at the rate of this build's own completions, elapsed / (done - done_before).
+std::string formatProgressBar(int done, int total, double elapsed_s, int failed = 0, int width = 30, int done_before = 0);
 
 /// Prints the progress of builds to one stream. Not thread-safe by itself: the builder calls its
 /// callbacks one at a time. Must outlive every build it is attached to.

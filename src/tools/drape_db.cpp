@@ -37,6 +37,7 @@
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/thread_limit.h"
 #include "textile_handling/vision/image_header.h"
 #include "textile_handling/vision/mask_cv.h"
@@ -73,6 +74,7 @@ const char* kUsage =
     "usage: drape_db COMMAND [options]\n"
     "  build  --db FILE --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
     "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
+    "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02]\n"
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
@@ -209,7 +211,7 @@ int cmdBuild(const Args& a) {
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
-               "--self-collision", "--memory-budget-mb"});
+               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -301,6 +303,16 @@ int cmdBuild(const Args& a) {
     throw UsageError(std::string("--model: ") + e.what());
   }
   c.require_rest = !a.has("--allow-no-rest");
+  try {
+    if (a.has("--rest-method")) c.rest_shape.method = restShapeMethodFromString(a.get("--rest-method"));
+  } catch (const SimError& e) {
+    throw UsageError(std::string("--rest-method: ") + e.what());
+  }
+  if (a.has("--coarse-spacing")) {
+    c.rest_shape.coarse_spacing = number(a.get("--coarse-spacing"), "--coarse-spacing");
+    if (!(c.rest_shape.coarse_spacing >= 0 && c.rest_shape.coarse_spacing <= 1))
+      throw UsageError("--coarse-spacing must be in [0, 1] m (0 = no coarse level)");
+  }
 
   tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
   if (!a.has("--quiet")) progress.attach(c);

@@ -266,10 +266,50 @@ TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
   c.frame.width_px = 0;
   expectInvalid(c, "empty frame");
   c = smallSquare();
-  c.threads_per_simulation = 0;
-  expectInvalid(c, "zero threads");
+  c.threads_per_simulation = -1;
+  expectInvalid(c, "negative threads");
   EXPECT_EQ(db.counts().textiles, 0);
   EXPECT_EQ(db.counts().simulations, 0);
+}
+
+TEST(DrapeDatabaseBuilder, QuasiStaticRestShapesMatchTheDynamicBuild) {
+  // The same two hold points built with both rest-shape methods into one file: different parameter
+  // texts (no row is resumed across methods), rest shapes within 5 mm, threads chosen automatically.
+  TempDatabase t("quasi_static");
+  HangingDrapeDatabase db(t.path());
+  DrapeBuildConfig c = smallSquare();
+  c.spacing = 0.015;
+  c.hold_points = {Vec2(0, 0), Vec2(0.15, 0)};
+  c.views.count = 4;
+  c.views.step_deg = 90;
+  c.workers = 1;
+  c.threads_per_simulation = 0;
+  std::map<std::string, std::map<std::pair<double, double>, VecX>> shapes;
+  for (RestShapeMethod m : {RestShapeMethod::kDynamic, RestShapeMethod::kQuasiStatic}) {
+    c.rest_shape.method = m;
+    c.rest_shape.coarse_spacing = 0.03;
+    DrapeBuildPass seen;
+    c.on_pass_start = [&seen](const DrapeBuildPass& p) { seen = p; };
+    DrapeDatabaseBuilder b(db, c);
+    const DrapeBuildReport r = b.build();
+    EXPECT_EQ(r.failed_now, 0);
+    EXPECT_EQ(r.simulated_now, 2) << "rows of the other method were resumed";
+    EXPECT_GE(seen.threads_per_simulation, 1);
+    const std::string params = DrapeDatabaseBuilder::parametersText(c);
+    EXPECT_EQ(params.find("rest_method: quasi_static") != std::string::npos, m == RestShapeMethod::kQuasiStatic);
+    for (const SimulationRecord& rec : db.simulations(0, SimulationStatus::kDone))
+      if (rec.parameters == params && rec.source == MirrorKind::kIdentity)
+        shapes[toString(m)][{rec.hold.x(), rec.hold.y()}] = db.positions(rec.id);
+  }
+  ASSERT_EQ(shapes["dynamic"].size(), 2u);
+  ASSERT_EQ(shapes["quasi_static"].size(), 2u);
+  for (const auto& [hold, a] : shapes["dynamic"]) {
+    const VecX& b = shapes["quasi_static"].at(hold);
+    ASSERT_EQ(a.size(), b.size());
+    Real worst = 0;
+    for (Eigen::Index i = 0; i < a.size() / 3; ++i) worst = std::max(worst, (a.segment<3>(3 * i) - b.segment<3>(3 * i)).norm());
+    EXPECT_LT(worst, 5e-3) << "hold (" << hold.first << ", " << hold.second << ")";
+  }
 }
 
 TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {

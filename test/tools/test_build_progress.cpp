@@ -19,6 +19,13 @@ TEST(BuildProgress, ProgressBar) {
             "[==========] 10/10 simulations (2 failed)  elapsed 1:02:05  ETA 00:00");
 }
 
+TEST(BuildProgress, EtaOfAResumedBuildCountsOnlyItsOwnCompletions) {
+  // 6 of 10 were done before; this build finished 2 in 60 s: 2 remain, 60 s more (not 20 s).
+  EXPECT_EQ(formatProgressBar(8, 10, 60.0, 0, 10, 6), "[========> ] 8/10 simulations  elapsed 01:00  ETA 01:00");
+  // Nothing finished by this build yet: no estimate.
+  EXPECT_EQ(formatProgressBar(6, 10, 30.0, 0, 10, 6), "[======>   ] 6/10 simulations  elapsed 00:30  ETA --:--");
+}
+
 namespace {
 
 db::DrapeBuildPass pass(int to_run) {

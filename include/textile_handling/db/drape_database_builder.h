@@ -15,6 +15,7 @@
 
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/rest_shape_search.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
 namespace textile_handling {
@@ -33,7 +34,7 @@ struct DrapeBuildPass {
   int already_done = 0;            ///< simulated rows done before this build
   int to_run = 0;                  ///< simulations this pass runs
   int workers = 0;                 ///< worker threads of the pass
-  int threads_per_simulation = 1;  ///< OpenMP threads inside one simulation
+  int threads_per_simulation = 1;  ///< OpenMP threads inside one simulation (as chosen)
   std::string symmetry;            ///< "none", "x", "y", "xy" (as used)
   bool symmetric_grid = false;     ///< mirrored rows derived rather than simulated
 };
@@ -79,6 +80,11 @@ struct DrapeBuildConfig {
   /// docs/collision.md) in every simulation. Off by default: about 1.7 times the simulation cost; without
   /// it a rest shape can pass through itself (docs/database.md). Written into the parameter text only when on.
   bool self_collision = false;
+  /// How a rest shape is found (rest_shape_search.h): kDynamic (the default) runs the simulation to
+  /// rest; kQuasiStatic settles on a 2 cm grid, finishes the equilibrium there with Newton solves and
+  /// settles the prolonged shape on the build's grid (falling back to kDynamic if a stage fails).
+  /// Builds with self_collision are always dynamic. Written into the parameter text when quasi-static.
+  RestShapeSettings rest_shape;
   /// A run that hits settings.max_time without reaching rest is stored as failed (true) or as done
   /// with rest_reached = false (false).
   bool require_rest = true;
@@ -101,7 +107,9 @@ struct DrapeBuildConfig {
 
   // ---- execution ----
   int workers = 0;                  ///< simulations run at once (0 = hardware threads)
-  int threads_per_simulation = 1;   ///< OpenMP threads inside one simulation
+  /// OpenMP threads inside one simulation; 0 = automatic: cores / workers (at least 1), so a build with
+  /// fewer jobs than cores gives the idle cores to the simulations and never oversubscribes.
+  int threads_per_simulation = 0;
   bool retry_failed = false;        ///< reset failed rows to pending before building
 
   // ---- reporting (the builder prints nothing; every callback is optional) ----
