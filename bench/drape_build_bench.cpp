@@ -2,7 +2,8 @@
 // path (rest_shape_search.h), on the thesis's towel database (6 x 6 hold points in one quadrant).
 //
 //   drape_build_bench [--out DIR] [--spacings D1,D2,...] [--grid NXxNY] [--holds K] [--mode holds|build|both]
-//                     [--workers N] [--repeats R] [--corner-reference]
+//                     [--workers N] [--repeats R] [--corner-reference] [--settle SPEED,MEAN,DURATION]
+//                     [--settle-tolerance M] [--coarse-spacing D] [--finish-iterations N]
 //
 // holds: every hold point of the grid (or its first K) simulated one after the other on one thread,
 //   the two methods interleaved per hold point (dynamic, quasi-static); per hold point the wall times,
@@ -48,6 +49,7 @@ struct Options {
   int nx = 6, ny = 6, holds = 0, workers = 0, repeats = 1;
   std::string mode = "holds";
   bool corner_reference = false;
+  RestShapeSettings fast;  ///< the quasi-static settings (--settle, --coarse-spacing, --finish-iterations)
 };
 
 std::vector<Real> parseList(const std::string& s) {
@@ -79,8 +81,19 @@ Options parseArgs(int argc, char** argv) {
     else if (a == "--workers") o.workers = std::stoi(next());
     else if (a == "--repeats") o.repeats = std::stoi(next());
     else if (a == "--corner-reference") o.corner_reference = true;
+    else if (a == "--settle") {
+      const std::vector<Real> v = parseList(next());
+      if (v.size() != 3) throw std::invalid_argument("--settle: SPEED,MEAN_SPEED,DURATION");
+      o.fast.settle_speed = v[0];
+      o.fast.settle_mean_speed = v[1];
+      o.fast.settle_duration = v[2];
+    } else if (a == "--settle-tolerance") o.fast.settle_error_tolerance = std::stod(next());
+    else if (a == "--coarse-spacing") o.fast.coarse_spacing = std::stod(next());
+    else if (a == "--finish-iterations") o.fast.finish.max_iterations = std::stoi(next());
     else throw std::invalid_argument("unknown option " + a);
   }
+  o.fast.method = RestShapeMethod::kQuasiStatic;
+  o.fast.validate();
   if (o.mode != "holds" && o.mode != "build" && o.mode != "both") throw std::invalid_argument("--mode: holds, build or both");
   for (Real d : o.spacings)
     if (!(d >= 0.004 && d <= 0.1)) throw std::invalid_argument("--spacings: each in [0.004, 0.1] m");
@@ -132,9 +145,7 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
       DrapeScene s_dyn = buildDrapeScene(spec);
       const RestShapeResult r_dyn = findRestShape(s_dyn, dyn);
       DrapeScene s_fast = buildDrapeScene(spec);
-      RestShapeSettings fast;
-      fast.method = RestShapeMethod::kQuasiStatic;
-      const RestShapeResult r_fast = findRestShape(s_fast, fast);
+      const RestShapeResult r_fast = findRestShape(s_fast, o.fast);
       const ShapeDistance dist = shapeDistance(s_dyn, r_dyn.positions, r_fast.positions);
       csv << num(d) << "," << s_dyn.grid.numActive() << "," << num(hold.x()) << "," << num(hold.y()) << ","
           << num(r_dyn.wall_seconds) << "," << r_dyn.steps << "," << r_dyn.rest_reached << "," << num(r_fast.wall_seconds)
@@ -180,7 +191,7 @@ void buildMode(const Options& o) {
     for (int rep = 0; rep < o.repeats; ++rep) {
       for (RestShapeMethod m : {RestShapeMethod::kDynamic, RestShapeMethod::kQuasiStatic}) {
         db::DrapeBuildConfig c = baseConfig(o, d);
-        c.rest_shape = RestShapeSettings{};
+        c.rest_shape = o.fast;
         c.rest_shape.method = m;
         c.workers = o.workers;
         db::DrapeBuildPass pass;

@@ -28,6 +28,7 @@ void RestShapeSettings::validate() const {
   nonNegative(settle_speed, "settle_speed");
   nonNegative(settle_mean_speed, "settle_mean_speed");
   nonNegative(settle_duration, "settle_duration");
+  nonNegative(settle_error_tolerance, "settle_error_tolerance");
   const StaticEquilibriumSettings& f = finish;  // the solver's own checks, named here for the caller
   if (f.max_iterations < 1 || f.max_backtracks < 0 || !(f.force_tolerance > 0) || !std::isfinite(f.force_tolerance) ||
       !(f.min_time_scale > 0) || !(f.min_time_scale <= f.initial_time_scale) || !(f.initial_time_scale <= f.max_time_scale) ||
@@ -40,7 +41,7 @@ std::string RestShapeSettings::text() const {
   std::ostringstream o;
   o.precision(17);
   o << "rest_method: quasi_static coarse_spacing: " << coarse_spacing << " settle: " << settle_speed << " "
-    << settle_mean_speed << " " << settle_duration << " finish: " << finish.force_tolerance << " "
+    << settle_mean_speed << " " << settle_duration << " " << settle_error_tolerance << " finish: " << finish.force_tolerance << " "
     << finish.max_iterations << " " << finish.initial_time_scale;
   return o.str();
 }
@@ -73,6 +74,7 @@ SimulationSettings settleSettings(const SimulationSettings& s, const RestShapeSe
   out.rest_speed = r.settle_speed;
   out.rest_mean_speed = r.settle_mean_speed;
   out.rest_duration = r.settle_duration;
+  if (r.settle_error_tolerance > 0) out.error_tolerance = r.settle_error_tolerance;
   out.trajectory_every = 0;
   return out;
 }

@@ -42,6 +42,8 @@ struct RestShapeSettings {
   Real settle_speed = 0.05;        ///< [m/s]
   Real settle_mean_speed = 0.01;   ///< [m/s]
   Real settle_duration = 0.1;      ///< [s]
+  /// Local error tolerance of the dynamic phase [m] (error-controlled steps); 0 = the scene's.
+  Real settle_error_tolerance = 0;
   StaticEquilibriumSettings finish;
   FineFinish fine_finish = FineFinish::kDynamic;
 
