@@ -3,7 +3,10 @@
 //
 //   drape_build_bench [--out DIR] [--spacings D1,D2,...] [--grid NXxNY] [--holds K] [--mode holds|build|both]
 //                     [--workers N] [--repeats R] [--corner-reference] [--settle SPEED,MEAN,DURATION]
-//                     [--settle-tolerance M] [--coarse-spacing D] [--finish-iterations N]
+//                     [--settle-tolerance M] [--coarse-spacing D] [--finish-iterations N] [--polish N]
+//                     [--fast dynamic|quasi_static] [--fast-cg-tolerance T] [--fast-cg-warm-start]
+//                     [--fast-error-tolerance M] [--fast-dt-max S]
+//   drape_build_bench --chart-from DIR/build_holds.csv --out DIR   (redraws the chart of stored rows)
 //
 // holds: every hold point of the grid (or its first K) simulated one after the other on one thread,
 //   the two methods interleaved per hold point (dynamic, quasi-static); per hold point the wall times,
@@ -15,6 +18,10 @@
 // --corner-reference: one dynamic simulation of the corner hold (0, 0.46) m with the builder's settings
 //   on one thread, for each spacing and repeat, interleaved with the build rows (the issue's yardstick:
 //   the whole fast build should take no longer than this one simulation).
+// --fast METHOD: the fast arm's rest-shape method (default quasi_static); --fast-* change the fast arm's
+//   simulation settings from the builder's (CG relative tolerance and warm start, step error tolerance,
+//   largest step), so cheaper dynamic settings can be measured against today's in the same run.
+// --polish N: finish both arms' rest shapes with up to N tight Newton iterations before comparing.
 // DIR/build_speed.png: seconds per hold point against the rest-shape difference, one point per hold
 // point and method. Benchmarks, not tests: nothing here asserts timings. Set OMP_WAIT_POLICY=passive.
 //
@@ -50,7 +57,23 @@ struct Options {
   std::string mode = "holds";
   bool corner_reference = false;
   RestShapeSettings fast;  ///< the quasi-static settings (--settle, --coarse-spacing, --finish-iterations)
+  std::string chart_from;  ///< --chart-from CSV: only redraw the chart of a stored build_holds.csv
+  int polish = 0;          ///< --polish N: also finish both rest shapes with up to N tight Newton iterations
+  // The fast arm's simulation settings, where they differ from the builder's (0 / false: unchanged).
+  Real fast_cg_tolerance = 0;     ///< --fast-cg-tolerance T
+  bool fast_cg_warm_start = false;  ///< --fast-cg-warm-start
+  Real fast_error_tolerance = 0;  ///< --fast-error-tolerance M
+  Real fast_dt_max = 0;           ///< --fast-dt-max S
+  std::string fast_label;  ///< fastLabel()
 };
+
+// The fast arm's simulation settings: the builder's, with the --fast-* overrides.
+void applyFastSimulation(const Options& o, SimulationSettings& s) {
+  if (o.fast_cg_tolerance > 0) s.solver.relative_tolerance = o.fast_cg_tolerance;
+  if (o.fast_cg_warm_start) s.solver.warm_start = true;
+  if (o.fast_error_tolerance > 0) s.error_tolerance = o.fast_error_tolerance;
+  if (o.fast_dt_max > 0) s.dt_max = o.fast_dt_max;
+}
 
 std::vector<Real> parseList(const std::string& s) {
   std::vector<Real> out;
@@ -62,6 +85,7 @@ std::vector<Real> parseList(const std::string& s) {
 
 Options parseArgs(int argc, char** argv) {
   Options o;
+  std::string fast_method = "quasi_static";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> std::string {
@@ -89,10 +113,17 @@ Options parseArgs(int argc, char** argv) {
       o.fast.settle_duration = v[2];
     } else if (a == "--settle-tolerance") o.fast.settle_error_tolerance = std::stod(next());
     else if (a == "--coarse-spacing") o.fast.coarse_spacing = std::stod(next());
+    else if (a == "--chart-from") o.chart_from = next();
+    else if (a == "--polish") o.polish = std::stoi(next());
     else if (a == "--finish-iterations") o.fast.finish.max_iterations = std::stoi(next());
+    else if (a == "--fast") fast_method = next();
+    else if (a == "--fast-cg-tolerance") o.fast_cg_tolerance = std::stod(next());
+    else if (a == "--fast-cg-warm-start") o.fast_cg_warm_start = true;
+    else if (a == "--fast-error-tolerance") o.fast_error_tolerance = std::stod(next());
+    else if (a == "--fast-dt-max") o.fast_dt_max = std::stod(next());
     else throw std::invalid_argument("unknown option " + a);
   }
-  o.fast.method = RestShapeMethod::kQuasiStatic;
+  o.fast.method = restShapeMethodFromString(fast_method);
   o.fast.validate();
   if (o.mode != "holds" && o.mode != "build" && o.mode != "both") throw std::invalid_argument("--mode: holds, build or both");
   for (Real d : o.spacings)
@@ -129,13 +160,24 @@ std::string num(double v, int prec = 6) {
   return buf;
 }
 
+// The fast arm's name in rows and charts: "quasi-static", or "dynamic" with its overrides.
+std::string fastLabel(const Options& o) {
+  std::string label = o.fast.method == RestShapeMethod::kQuasiStatic ? "quasi-static" : "dynamic";
+  if (o.fast_cg_tolerance > 0) label += ", CG " + num(o.fast_cg_tolerance, 3);
+  if (o.fast_cg_warm_start) label += " warm";
+  if (o.fast_error_tolerance > 0) label += ", steps " + num(1000 * o.fast_error_tolerance, 3) + " mm";
+  if (o.fast_dt_max > 0) label += ", dt_max " + num(1000 * o.fast_dt_max, 3) + " ms";
+  return label;
+}
+
 void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
   const std::string path = o.out + "/build_holds.csv";
   std::ofstream csv(path);
   if (!csv) throw std::runtime_error("cannot write " + path);
   csv << "spacing_m,particles,hold_x_m,hold_y_m,dynamic_s,dynamic_steps,dynamic_rest,fast_s,fast_method,fast_coarse_steps,"
          "fast_coarse_finish_iterations,fast_finish_iterations,fast_residual,fast_dynamic_phase_s,fast_coarse_finish_s,fast_finish_s,speedup,named_point_distance_m,"
-         "max_particle_distance_m\n";
+         "max_particle_distance_m,dynamic_polish_move_m,fast_polish_move_m,polished_named_distance_m,"
+         "dynamic_polish_converged,fast_polish_converged,dynamic_polish_s\n";
   for (Real d : o.spacings) {
     const db::DrapeBuildConfig c = baseConfig(o, d);
     for (const Vec2& hold : c.hold_points) {
@@ -144,15 +186,42 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
       dyn.method = RestShapeMethod::kDynamic;
       DrapeScene s_dyn = buildDrapeScene(spec);
       const RestShapeResult r_dyn = findRestShape(s_dyn, dyn);
-      DrapeScene s_fast = buildDrapeScene(spec);
+      DrapeSceneSpec fast_spec = spec;
+      applyFastSimulation(o, fast_spec.settings);
+      DrapeScene s_fast = buildDrapeScene(fast_spec);
       const RestShapeResult r_fast = findRestShape(s_fast, o.fast);
       const ShapeDistance dist = shapeDistance(s_dyn, r_dyn.positions, r_fast.positions);
+      // The tight reference: each rest shape finished to 1e-4 of a node's weight by Newton iterations
+      // (rest detection stops while soft modes still creep).
+      ShapeDistance dyn_move, fast_move, polished;
+      bool dyn_ok = false, fast_ok = false;
+      double polish_s = 0;
+      if (o.polish > 0) {
+        StaticEquilibriumSettings tight;
+        tight.force_tolerance = 1e-4;
+        tight.max_iterations = o.polish;
+        VecX xd = r_dyn.state, xf = r_fast.state;
+        const StaticEquilibriumResult pd = solveStaticEquilibrium(*s_dyn.model, s_dyn.pins, 0, xd, tight);
+        const StaticEquilibriumResult pf = solveStaticEquilibrium(*s_fast.model, s_fast.pins, 0, xf, tight);
+        dyn_ok = pd.converged;
+        fast_ok = pf.converged;
+        polish_s = pd.wall_ms / 1000;
+        const VecX pdx = s_dyn.model->positionsOf(xd), pfx = s_fast.model->positionsOf(xf);
+        dyn_move = shapeDistance(s_dyn, r_dyn.positions, pdx);
+        fast_move = shapeDistance(s_dyn, r_fast.positions, pfx);
+        polished = shapeDistance(s_dyn, pdx, pfx);
+        std::cerr << "  polished: dynamic moved " << num(1000 * dyn_move.named, 3) << " mm (" << pd.iterations << " it, "
+                  << (pd.converged ? "converged" : pd.failure) << "), fast moved " << num(1000 * fast_move.named, 3)
+                  << " mm (" << pf.iterations << " it), polished shapes " << num(1000 * polished.named, 3) << " mm apart\n";
+      }
       csv << num(d) << "," << s_dyn.grid.numActive() << "," << num(hold.x()) << "," << num(hold.y()) << ","
           << num(r_dyn.wall_seconds) << "," << r_dyn.steps << "," << r_dyn.rest_reached << "," << num(r_fast.wall_seconds)
-          << ",\"" << r_fast.method_used << "\"," << r_fast.steps << "," << r_fast.coarse_finish.iterations << ","
+          << ",\"" << (o.fast.method == RestShapeMethod::kDynamic ? o.fast_label : r_fast.method_used) << "\"," << r_fast.steps << "," << r_fast.coarse_finish.iterations << ","
           << r_fast.finish.iterations << "," << num(r_fast.finish.residual_ratio) << "," << num(r_fast.dynamic.wall_time) << ","
           << num(r_fast.coarse_finish.wall_ms / 1000) << "," << num(r_fast.finish.wall_ms / 1000 + r_fast.finish_run.wall_time) << ","
-          << num(r_dyn.wall_seconds / r_fast.wall_seconds) << "," << num(dist.named) << "," << num(dist.all) << "\n"
+          << num(r_dyn.wall_seconds / r_fast.wall_seconds) << "," << num(dist.named) << "," << num(dist.all) << ","
+          << num(dyn_move.named) << "," << num(fast_move.named) << "," << num(polished.named) << "," << dyn_ok << ","
+          << fast_ok << "," << num(polish_s) << "\n"
           << std::flush;
       std::cerr << "d " << num(d, 3) << " hold (" << num(hold.x(), 3) << ", " << num(hold.y(), 3) << "): dynamic "
                 << num(r_dyn.wall_seconds, 3) << " s, fast " << num(r_fast.wall_seconds, 3) << " s (" << r_fast.method_used
@@ -162,7 +231,9 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
                 << r_fast.finish_run.steps << " steps)), named points " << num(1000 * dist.named, 3) << " mm, all " << num(1000 * dist.all, 3) << " mm\n";
       const std::string series = "d = " + num(100 * d, 2) + " cm";
       chart->push_back({r_dyn.wall_seconds, std::max(1e-5, dist.named), "", series + " dynamic"});
-      chart->push_back({r_fast.wall_seconds, std::max(1e-5, dist.named), "", series + " quasi-static"});
+      const bool fell_back = o.fast.method == RestShapeMethod::kQuasiStatic && r_fast.method_used != "quasi_static";
+      chart->push_back({r_fast.wall_seconds, std::max(1e-5, dist.named), "",
+                        series + " " + o.fast_label + (fell_back ? ", fell back" : "")});
     }
   }
 }
@@ -181,6 +252,52 @@ double cornerReference(Real d) {
   return r.wall_seconds;
 }
 
+// Chart points of stored holds rows: wall time per hold point and method against the named-point
+// distance (columns by name, so rows of older column sets still draw).
+std::vector<ChartPoint> chartFromCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read " + path);
+  std::string line;
+  std::getline(in, line);
+  std::vector<std::string> header;
+  {
+    std::stringstream ss(line);
+    std::string h;
+    while (std::getline(ss, h, ',')) header.push_back(h);
+  }
+  auto col = [&](const std::string& name) {
+    const auto it = std::find(header.begin(), header.end(), name);
+    if (it == header.end()) throw std::runtime_error(path + ": no column " + name);
+    return static_cast<std::size_t>(it - header.begin());
+  };
+  const std::size_t c_d = col("spacing_m"), c_dyn = col("dynamic_s"), c_fast = col("fast_s"),
+                    c_named = col("named_point_distance_m"), c_method = col("fast_method");
+  std::vector<ChartPoint> out;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::string cur;
+    bool quoted = false;
+    for (char ch : line) {
+      if (ch == '"') quoted = !quoted;
+      else if (ch == ',' && !quoted) {
+        f.push_back(cur);
+        cur.clear();
+      } else cur += ch;
+    }
+    f.push_back(cur);
+    if (f.size() < header.size()) continue;
+    const std::string series = "d = " + num(100 * std::stod(f[c_d]), 2) + " cm";
+    const double named = std::max(1e-5, std::stod(f[c_named]));
+    out.push_back({std::stod(f[c_dyn]), named, "", series + " dynamic"});
+    const std::string& method = f[c_method];
+    const bool dynamic_arm = method.rfind("dynamic", 0) == 0 && method.find("failed") == std::string::npos;
+    const bool fell_back = !dynamic_arm && method != "quasi_static";
+    out.push_back({std::stod(f[c_fast]), named, "",
+                   series + (dynamic_arm ? " " + method : fell_back ? " quasi-static, fell back" : " quasi-static")});
+  }
+  return out;
+}
+
 void buildMode(const Options& o) {
   const std::string path = o.out + "/build_whole.csv";
   std::ofstream csv(path);
@@ -189,10 +306,12 @@ void buildMode(const Options& o) {
          "simulation_s_sum,corner_reference_s\n";
   for (Real d : o.spacings) {
     for (int rep = 0; rep < o.repeats; ++rep) {
-      for (RestShapeMethod m : {RestShapeMethod::kDynamic, RestShapeMethod::kQuasiStatic}) {
+      for (bool fast : {false, true}) {
+        const RestShapeMethod m = fast ? o.fast.method : RestShapeMethod::kDynamic;
         db::DrapeBuildConfig c = baseConfig(o, d);
         c.rest_shape = o.fast;
         c.rest_shape.method = m;
+        if (fast) applyFastSimulation(o, c.settings);
         c.workers = o.workers;
         db::DrapeBuildPass pass;
         c.on_pass_start = [&pass](const db::DrapeBuildPass& p) { pass = p; };
@@ -206,11 +325,11 @@ void buildMode(const Options& o) {
         }
         for (const char* ext : {"", "-wal", "-shm"}) std::filesystem::remove(file + ext);
         const double corner = o.corner_reference ? cornerReference(d) : 0.0;
-        csv << num(d) << "," << rep << "," << toString(m) << "," << rep_out.planned << "," << rep_out.simulated_now << ","
+        csv << num(d) << "," << rep << ",\"" << (fast ? o.fast_label : std::string("today")) << "\"," << rep_out.planned << "," << rep_out.simulated_now << ","
             << rep_out.failed_now << "," << pass.workers << "," << pass.threads_per_simulation << ","
             << num(rep_out.wall_seconds) << "," << num(rep_out.simulation_seconds) << "," << num(corner) << "\n"
             << std::flush;
-        std::cerr << "d " << num(d, 3) << " " << toString(m) << ": " << rep_out.planned << " rows in "
+        std::cerr << "d " << num(d, 3) << " " << (fast ? o.fast_label : std::string("today")) << ": " << rep_out.planned << " rows in "
                   << num(rep_out.wall_seconds, 4) << " s (" << pass.workers << " x " << pass.threads_per_simulation
                   << "), corner reference " << num(corner, 4) << " s\n";
       }
@@ -224,6 +343,7 @@ int main(int argc, char** argv) {
   Options o;
   try {
     o = parseArgs(argc, argv);
+    o.fast_label = fastLabel(o);
   } catch (const std::exception& e) {
     std::cerr << "drape_build_bench: " << e.what() << "\n";
     return 2;
@@ -231,13 +351,17 @@ int main(int argc, char** argv) {
   try {
     std::filesystem::create_directories(o.out);
     std::vector<ChartPoint> chart;
-    if (o.mode != "build") holdsMode(o, &chart);
-    if (o.mode != "holds") buildMode(o);
+    if (!o.chart_from.empty()) {
+      chart = chartFromCsv(o.chart_from);
+    } else {
+      if (o.mode != "build") holdsMode(o, &chart);
+      if (o.mode != "holds") buildMode(o);
+    }
     if (!chart.empty()) {
       std::string err;
       if (!writeLogLogChart(o.out + "/build_speed.png", chart, "wall time per hold point [s], one thread",
                             "largest named-point distance to the dynamic rest shape [m]",
-                            "Rest shapes: dynamic vs quasi-static (towel, 6x6 quadrant grid)", &err))
+                            "Rest shapes: today's dynamic vs a fast path (towel, 6x6 quadrant grid)", &err))
         std::cerr << "drape_build_bench: chart: " << err << "\n";
     }
   } catch (const std::runtime_error& e) {

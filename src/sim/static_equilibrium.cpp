@@ -21,6 +21,8 @@ void checkSettings(const StaticEquilibriumSettings& s) {
   };
   if (s.max_iterations < 1) throw SimError("static equilibrium: max_iterations must be >= 1");
   if (s.max_backtracks < 0) throw SimError("static equilibrium: max_backtracks must be >= 0");
+  if (!(s.max_extrapolation >= 1) || !std::isfinite(s.max_extrapolation))
+    throw SimError("static equilibrium: max_extrapolation must be finite and >= 1");
   positive(s.force_tolerance, "force_tolerance");
   positive(s.initial_time_scale, "initial_time_scale");
   positive(s.max_time_scale, "max_time_scale");
@@ -68,7 +70,7 @@ StaticEquilibriumResult solveStaticEquilibrium(ClothModel& model, const PinnedNo
   BlockSparseMatrix system(&model.jacobianPattern());
   BlockSparseLdlt ldlt;
   ldlt.setPattern(model.jacobianPattern());
-  VecX f, dx, x_try;
+  VecX f, dx, x_try, x_stretch;
   // Energies that differ by less than this are equal to rounding (M g times a metre, times 1e-12).
   const Real energy_noise = 1e-12 * model.totalMass() * kGravity + 1e-300;
 
@@ -140,6 +142,18 @@ StaticEquilibriumResult solveStaticEquilibrium(ClothModel& model, const PinnedNo
         break;
       }
     }
+    // A full step that lowered the energy is stretched while it keeps lowering it (alpha 2, 4, ...):
+    // along the stiffening (quintic) tension terms Newton's full step covers only a fraction of the way.
+    if (accepted && alpha == 1) {
+      for (Real stretch = 2; stretch <= s.max_extrapolation; stretch *= 2) {
+        x_stretch = x + stretch * dx;
+        const Real e = model.potentialEnergy(x_stretch);
+        if (!std::isfinite(e) || !(e < energy)) break;
+        energy = e;
+        alpha = stretch;
+        x_try.swap(x_stretch);
+      }
+    }
     res.assembly_ms += msSince(a0);
     if (!accepted) {
       ++res.rejected;
@@ -148,7 +162,7 @@ StaticEquilibriumResult solveStaticEquilibrium(ClothModel& model, const PinnedNo
     }
     x.swap(x_try);
     forces_current = false;
-    h = alpha == 1 ? std::min(4 * h, s.max_time_scale) : h / 4;
+    h = alpha >= 1 ? std::min(4 * h, s.max_time_scale) : h / 4;
   }
   res.time_scale = h;
   res.energy_drop = energy_start - energy;

@@ -30,6 +30,9 @@ struct StaticEquilibriumSettings {
   Real max_time_scale = 1e4;        ///< h cap [s]
   Real min_time_scale = 1e-6;       ///< below this the solve gives up [s]
   int max_backtracks = 10;          ///< line-search halvings per iteration
+  /// A full step that lowers the energy is doubled while the energy keeps falling, up to this factor
+  /// (1 = never): Newton's step on a quintic tension term covers only a fifth of the way.
+  Real max_extrapolation = 16;
 };
 
 struct StaticEquilibriumResult {
