@@ -1,11 +1,19 @@
-// drape_build_bench: database-build speed, today's dynamic rest shapes against the quasi-static fast
-// path (rest_shape_search.h), on the thesis's towel database (6 x 6 hold points in one quadrant).
+// drape_build_bench: database-build speed, reference dynamic rest shapes against a fast path (the
+// builder's defaults, cheaper dynamic settings, or the quasi-static method of rest_shape_search.h), on
+// the thesis's towel database (6 x 6 hold points in one quadrant).
+//
+// The reference arm is the builder's dynamic run with the linear systems solved tightly (CG relative
+// tolerance 1e-6, cold start): error-controlled steps of 0.1 mm, dt_max 40 ms, no self-collision. The
+// fast arm starts from DrapeBuildConfig::defaultSimulationSettings() (CG 0.01, warm start) and applies
+// the --fast* options.
 //
 //   drape_build_bench [--out DIR] [--spacings D1,D2,...] [--grid NXxNY] [--holds K] [--mode holds|build|both]
 //                     [--workers N] [--repeats R] [--corner-reference] [--settle SPEED,MEAN,DURATION]
 //                     [--settle-tolerance M] [--coarse-spacing D] [--finish-iterations N] [--polish N]
 //                     [--fast dynamic|quasi_static] [--fast-cg-tolerance T] [--fast-cg-warm-start]
-//                     [--fast-error-tolerance M] [--fast-dt-max S]
+//                     [--fast-cg-cold-start]
+//                     [--fast-error-tolerance M] [--fast-dt-max S] [--shard K/S]
+//                     [--fast-build-only]
 //   drape_build_bench --chart-from DIR/build_holds.csv --out DIR   (redraws the chart of stored rows)
 //
 // holds: every hold point of the grid (or its first K) simulated one after the other on one thread,
@@ -14,14 +22,16 @@
 //   textile's named points (corners, edge midpoints) and over all particles. Rows: DIR/build_holds.csv.
 // build: the whole database (views rendered, rows stored, mirrored rows derived) with
 //   DrapeDatabaseBuilder, --workers workers (0 = automatic), both methods, alternating, --repeats times
-//   each (ABAB...). Rows: DIR/build_whole.csv.
-// --corner-reference: one dynamic simulation of the corner hold (0, 0.46) m with the builder's settings
-//   on one thread, for each spacing and repeat, interleaved with the build rows (the yardstick:
+//   each (ABAB...). Rows: DIR/build_whole.csv. --fast-build-only: only the fast arm's builds.
+// --corner-reference: one dynamic simulation of the corner hold (0, 0.46) m with the reference settings
+//   on one thread, for each spacing and repeat, interleaved with the build rows (the yardstick:
 //   the whole fast build should take no longer than this one simulation).
 // --fast METHOD: the fast arm's rest-shape method (default quasi_static); --fast-* change the fast arm's
-//   simulation settings from the builder's (CG relative tolerance and warm start, step error tolerance,
-//   largest step), so cheaper dynamic settings can be measured against today's in the same run.
+//   simulation settings from the builder's defaults (CG relative tolerance and warm start, step error
+//   tolerance, largest step); --fast-cg-cold-start turns the warm start off.
+// --shard K/S: only every S-th hold point from the K-th (0-based), to split one grid over processes.
 // --polish N: finish both arms' rest shapes with up to N tight Newton iterations before comparing.
+// DIR/build_whole.png: whole-build wall time against spacing per method, with the corner reference.
 // DIR/build_speed.png: seconds per hold point against the rest-shape difference, one point per hold
 // point and method. Benchmarks, not tests: nothing here asserts timings. Set OMP_WAIT_POLICY=passive.
 //
@@ -54,6 +64,8 @@ struct Options {
   std::string out = "bench_out";
   std::vector<Real> spacings = {0.02, 0.01, 0.02 / 3};
   int nx = 6, ny = 6, holds = 0, workers = 0, repeats = 1;
+  bool fast_build_only = false;  ///< --fast-build-only: build mode runs only the fast arm (and the corner reference)
+  int shard = 0, shards = 1;  ///< --shard K/S: only the hold points k with k % S == K (split a run over processes)
   std::string mode = "holds";
   bool corner_reference = false;
   RestShapeSettings fast;  ///< the quasi-static settings (--settle, --coarse-spacing, --finish-iterations)
@@ -62,13 +74,16 @@ struct Options {
   // The fast arm's simulation settings, where they differ from the builder's (0 / false: unchanged).
   Real fast_cg_tolerance = 0;     ///< --fast-cg-tolerance T
   bool fast_cg_warm_start = false;  ///< --fast-cg-warm-start
+  bool fast_cg_cold_start = false;  ///< --fast-cg-cold-start
   Real fast_error_tolerance = 0;  ///< --fast-error-tolerance M
   Real fast_dt_max = 0;           ///< --fast-dt-max S
   std::string fast_label;  ///< fastLabel()
 };
 
-// The fast arm's simulation settings: the builder's, with the --fast-* overrides.
+// The fast arm's simulation settings: the builder's defaults, with the --fast-* overrides.
 void applyFastSimulation(const Options& o, SimulationSettings& s) {
+  s.solver = db::DrapeBuildConfig::defaultSimulationSettings().solver;
+  if (o.fast_cg_cold_start) s.solver.warm_start = false;
   if (o.fast_cg_tolerance > 0) s.solver.relative_tolerance = o.fast_cg_tolerance;
   if (o.fast_cg_warm_start) s.solver.warm_start = true;
   if (o.fast_error_tolerance > 0) s.error_tolerance = o.fast_error_tolerance;
@@ -101,6 +116,14 @@ Options parseArgs(int argc, char** argv) {
       o.nx = std::stoi(g.substr(0, x));
       o.ny = std::stoi(g.substr(x + 1));
     } else if (a == "--holds") o.holds = std::stoi(next());
+    else if (a == "--shard") {
+      const std::string v = next();
+      const auto slash = v.find('/');
+      if (slash == std::string::npos) throw std::invalid_argument("--shard: expected K/S");
+      o.shard = std::stoi(v.substr(0, slash));
+      o.shards = std::stoi(v.substr(slash + 1));
+      if (o.shards < 1 || o.shard < 0 || o.shard >= o.shards) throw std::invalid_argument("--shard: 0 <= K < S");
+    }
     else if (a == "--mode") o.mode = next();
     else if (a == "--workers") o.workers = std::stoi(next());
     else if (a == "--repeats") o.repeats = std::stoi(next());
@@ -119,6 +142,8 @@ Options parseArgs(int argc, char** argv) {
     else if (a == "--fast") fast_method = next();
     else if (a == "--fast-cg-tolerance") o.fast_cg_tolerance = std::stod(next());
     else if (a == "--fast-cg-warm-start") o.fast_cg_warm_start = true;
+    else if (a == "--fast-cg-cold-start") o.fast_cg_cold_start = true;
+    else if (a == "--fast-build-only") o.fast_build_only = true;
     else if (a == "--fast-error-tolerance") o.fast_error_tolerance = std::stod(next());
     else if (a == "--fast-dt-max") o.fast_dt_max = std::stod(next());
     else throw std::invalid_argument("unknown option " + a);
@@ -132,11 +157,26 @@ Options parseArgs(int argc, char** argv) {
   return o;
 }
 
+// The reference arm's simulation settings: the builder's, with tight cold-started CG solves.
+SimulationSettings referenceSettings() {
+  SimulationSettings s = db::DrapeBuildConfig::defaultSimulationSettings();
+  s.solver.relative_tolerance = 1e-6;
+  s.solver.warm_start = false;
+  return s;
+}
+
 db::DrapeBuildConfig baseConfig(const Options& o, Real spacing) {
   db::DrapeBuildConfig c;
+  c.settings = referenceSettings();
   c.textile = presetTextile("towel");
   c.spacing = spacing;
   c.hold_points = db::fundamentalDomainGrid(c.textile, db::detectSymmetry(c.textile), o.nx, o.ny);
+  if (o.shards > 1) {
+    std::vector<Vec2> mine;
+    for (size_t k = 0; k < c.hold_points.size(); ++k)
+      if (static_cast<int>(k % o.shards) == o.shard) mine.push_back(c.hold_points[k]);
+    c.hold_points = mine;
+  }
   if (o.holds > 0 && static_cast<int>(c.hold_points.size()) > o.holds) c.hold_points.resize(o.holds);
   return c;
 }
@@ -154,6 +194,25 @@ ShapeDistance shapeDistance(const DrapeScene& scene, const VecX& a, const VecX& 
   return d;
 }
 
+// The named-point distance of b to the nearest mirror image of a among the textile mirrors that fix
+// the hold point (a hold on a symmetry axis has two mirror-image equilibria, equally physical); the
+// plain distance when no mirror fixes it.
+Real mirrorAwareNamedDistance(const DrapeScene& scene, const Vec2& hold, const VecX& a, const VecX& b) {
+  Real best = shapeDistance(scene, a, b).named;
+  const db::TextileSymmetry sym = db::detectSymmetry(scene.spec.textile);
+  const Vec3 hold_world = a.segment<3>(3 * scene.hold_particle);
+  for (db::MirrorKind m : sym.mirrors()) {
+    if (m == db::MirrorKind::kIdentity) continue;
+    const bool flips_x = m == db::MirrorKind::kMirrorX || m == db::MirrorKind::kMirrorXY;
+    const bool flips_y = m == db::MirrorKind::kMirrorY || m == db::MirrorKind::kMirrorXY;
+    if ((flips_x && std::abs(hold.x() - sym.cx) > 1e-6) || (flips_y && std::abs(hold.y() - sym.cy) > 1e-6)) continue;
+    const std::vector<Index> perm = db::mirrorPermutation(scene.grid, sym, m);
+    if (perm.empty()) continue;
+    best = std::min(best, shapeDistance(scene, db::mirrorPositions(a, perm, m, hold_world), b).named);
+  }
+  return best;
+}
+
 std::string num(double v, int prec = 6) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*g", prec, v);
@@ -163,8 +222,9 @@ std::string num(double v, int prec = 6) {
 // The fast arm's name in rows and charts: "quasi-static", or "dynamic" with its overrides.
 std::string fastLabel(const Options& o) {
   std::string label = o.fast.method == RestShapeMethod::kQuasiStatic ? "quasi-static" : "dynamic";
-  if (o.fast_cg_tolerance > 0) label += ", CG " + num(o.fast_cg_tolerance, 3);
-  if (o.fast_cg_warm_start) label += " warm";
+  SimulationSettings s = db::DrapeBuildConfig::defaultSimulationSettings();
+  applyFastSimulation(o, s);
+  label += ", CG " + num(s.solver.relative_tolerance, 3) + (s.solver.warm_start ? " warm" : " cold");
   if (o.fast_error_tolerance > 0) label += ", steps " + num(1000 * o.fast_error_tolerance, 3) + " mm";
   if (o.fast_dt_max > 0) label += ", dt_max " + num(1000 * o.fast_dt_max, 3) + " ms";
   return label;
@@ -177,7 +237,7 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
   csv << "spacing_m,particles,hold_x_m,hold_y_m,dynamic_s,dynamic_steps,dynamic_rest,fast_s,fast_method,fast_coarse_steps,"
          "fast_coarse_finish_iterations,fast_finish_iterations,fast_residual,fast_dynamic_phase_s,fast_coarse_finish_s,fast_finish_s,speedup,named_point_distance_m,"
          "max_particle_distance_m,dynamic_polish_move_m,fast_polish_move_m,polished_named_distance_m,"
-         "dynamic_polish_converged,fast_polish_converged,dynamic_polish_s\n";
+         "dynamic_polish_converged,fast_polish_converged,dynamic_polish_s,mirror_aware_named_distance_m\n";
   for (Real d : o.spacings) {
     const db::DrapeBuildConfig c = baseConfig(o, d);
     for (const Vec2& hold : c.hold_points) {
@@ -191,6 +251,7 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
       DrapeScene s_fast = buildDrapeScene(fast_spec);
       const RestShapeResult r_fast = findRestShape(s_fast, o.fast);
       const ShapeDistance dist = shapeDistance(s_dyn, r_dyn.positions, r_fast.positions);
+      const Real mirror_named = mirrorAwareNamedDistance(s_dyn, hold, r_dyn.positions, r_fast.positions);
       // The tight reference: each rest shape finished to 1e-4 of a node's weight by Newton iterations
       // (rest detection stops while soft modes still creep).
       ShapeDistance dyn_move, fast_move, polished;
@@ -221,14 +282,14 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
           << num(r_fast.coarse_finish.wall_ms / 1000) << "," << num(r_fast.finish.wall_ms / 1000 + r_fast.finish_run.wall_time) << ","
           << num(r_dyn.wall_seconds / r_fast.wall_seconds) << "," << num(dist.named) << "," << num(dist.all) << ","
           << num(dyn_move.named) << "," << num(fast_move.named) << "," << num(polished.named) << "," << dyn_ok << ","
-          << fast_ok << "," << num(polish_s) << "\n"
+          << fast_ok << "," << num(polish_s) << "," << num(mirror_named) << "\n"
           << std::flush;
       std::cerr << "d " << num(d, 3) << " hold (" << num(hold.x(), 3) << ", " << num(hold.y(), 3) << "): dynamic "
                 << num(r_dyn.wall_seconds, 3) << " s, fast " << num(r_fast.wall_seconds, 3) << " s (" << r_fast.method_used
                 << ": dynamic phase " << num(r_fast.dynamic.wall_time, 3) << " s, coarse finish "
                 << num(r_fast.coarse_finish.wall_ms / 1000, 3) << " s (" << r_fast.coarse_finish.iterations << " it), finish "
                 << num(r_fast.finish.wall_ms / 1000 + r_fast.finish_run.wall_time, 3) << " s (" << r_fast.finish.iterations << " it, "
-                << r_fast.finish_run.steps << " steps)), named points " << num(1000 * dist.named, 3) << " mm, all " << num(1000 * dist.all, 3) << " mm\n";
+                << r_fast.finish_run.steps << " steps)), named points " << num(1000 * dist.named, 3) << " mm, all " << num(1000 * dist.all, 3) << " mm, named up to a mirror " << num(1000 * mirror_named, 3) << " mm\n";
       const std::string series = "d = " + num(100 * d, 2) + " cm";
       chart->push_back({r_dyn.wall_seconds, std::max(1e-5, dist.named), "", series + " dynamic"});
       const bool fell_back = o.fast.method == RestShapeMethod::kQuasiStatic && r_fast.method_used != "quasi_static";
@@ -240,6 +301,7 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
 
 double cornerReference(Real d) {
   db::DrapeBuildConfig c;
+  c.settings = referenceSettings();
   c.spacing = d;
   c.textile = presetTextile("towel");
   DrapeScene s = buildDrapeScene(db::DrapeDatabaseBuilder::sceneSpec(c, Vec2(0.0, 0.46)));
@@ -304,9 +366,11 @@ void buildMode(const Options& o) {
   if (!csv) throw std::runtime_error("cannot write " + path);
   csv << "spacing_m,repeat,method,hold_points,simulated,failed,workers,threads_per_simulation,wall_s,"
          "simulation_s_sum,corner_reference_s\n";
+  std::vector<ChartPoint> chart;
   for (Real d : o.spacings) {
     for (int rep = 0; rep < o.repeats; ++rep) {
       for (bool fast : {false, true}) {
+        if (!fast && o.fast_build_only) continue;
         const RestShapeMethod m = fast ? o.fast.method : RestShapeMethod::kDynamic;
         db::DrapeBuildConfig c = baseConfig(o, d);
         c.rest_shape = o.fast;
@@ -325,16 +389,24 @@ void buildMode(const Options& o) {
         }
         for (const char* ext : {"", "-wal", "-shm"}) std::filesystem::remove(file + ext);
         const double corner = o.corner_reference ? cornerReference(d) : 0.0;
-        csv << num(d) << "," << rep << ",\"" << (fast ? o.fast_label : std::string("today")) << "\"," << rep_out.planned << "," << rep_out.simulated_now << ","
+        csv << num(d) << "," << rep << ",\"" << (fast ? o.fast_label : std::string("reference")) << "\"," << rep_out.planned << "," << rep_out.simulated_now << ","
             << rep_out.failed_now << "," << pass.workers << "," << pass.threads_per_simulation << ","
             << num(rep_out.wall_seconds) << "," << num(rep_out.simulation_seconds) << "," << num(corner) << "\n"
             << std::flush;
-        std::cerr << "d " << num(d, 3) << " " << (fast ? o.fast_label : std::string("today")) << ": " << rep_out.planned << " rows in "
+        std::cerr << "d " << num(d, 3) << " " << (fast ? o.fast_label : std::string("reference")) << ": " << rep_out.planned << " rows in "
                   << num(rep_out.wall_seconds, 4) << " s (" << pass.workers << " x " << pass.threads_per_simulation
                   << "), corner reference " << num(corner, 4) << " s\n";
+        const std::string series = fast ? o.fast_label : std::string("reference");
+        chart.push_back({100 * d, rep_out.wall_seconds, "", "whole build, " + series});
+        if (corner > 0) chart.push_back({100 * d, corner, "", "one corner simulation, reference, 1 thread"});
       }
     }
   }
+  std::string err;
+  if (!chart.empty() &&
+      !writeLogLogChart(o.out + "/build_whole.png", chart, "particle spacing d [cm]", "wall time [s]",
+                        "Whole thesis database (towel, 6x6 quadrant grid, 36 views)", &err))
+    std::cerr << "drape_build_bench: chart: " << err << "\n";
 }
 
 }  // namespace
@@ -361,7 +433,7 @@ int main(int argc, char** argv) {
       std::string err;
       if (!writeLogLogChart(o.out + "/build_speed.png", chart, "wall time per hold point [s], one thread",
                             "largest named-point distance to the dynamic rest shape [m]",
-                            "Rest shapes: today's dynamic vs a fast path (towel, 6x6 quadrant grid)", &err))
+                            "Rest shapes: reference dynamic vs a fast path (towel, 6x6 quadrant grid)", &err))
         std::cerr << "drape_build_bench: chart: " << err << "\n";
     }
   } catch (const std::runtime_error& e) {

@@ -23,7 +23,7 @@ set +u; source "$REPO/.build/ws/devel/setup.bash"; set -u
 echo "[demo] database $DB"
 # Builds what is missing (nothing when complete): the thesis's 6x6 quadrant grid of hold points, at the
 # resolution the recognizer needs for grasp frames within a few cm (docs/recognition.md).
-OMP_WAIT_POLICY=passive "$BIN/drape_db" build --db "$DB" --textile towel --grid 6x6 --spacing 0.006666666666666667 --cg-tolerance 0.03 --cg-warm-start --threads 2
+OMP_WAIT_POLICY=passive "$BIN/drape_db" build --db "$DB" --textile towel --grid 6x6 --spacing 0.006666666666666667
 "$BIN/drape_db" list --db "$DB"
 echo "[demo] replaying $BAG"
 set +e

@@ -77,7 +77,7 @@ const char* kUsage =
     "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02]\n"
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
-    "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-warm-start]\n"
+    "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
@@ -210,7 +210,7 @@ int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
-               "--cg-tolerance", "--cg-warm-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
+               "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
                "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing"});
   DrapeBuildConfig c;
   try {
@@ -283,7 +283,9 @@ int cmdBuild(const Args& a) {
     if (!(c.settings.solver.relative_tolerance > 0 && c.settings.solver.relative_tolerance < 1))
       throw UsageError("--cg-tolerance must be in (0, 1)");
   }
-  if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;
+  if (a.has("--cg-warm-start") && a.has("--cg-cold-start")) throw UsageError("--cg-warm-start and --cg-cold-start exclude each other");
+  if (a.has("--cg-warm-start")) c.settings.solver.warm_start = true;  // the default; kept for old scripts
+  if (a.has("--cg-cold-start")) c.settings.solver.warm_start = false;
   if (a.has("--self-collision")) c.self_collision = true;
   if (a.has("--max-time")) c.settings.max_time = number(a.get("--max-time"), "--max-time");
   // The model and its options, checked through the model registry before the database file is opened
@@ -600,7 +602,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   try {
     if (cmd == "build")
-      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start",
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
                                              "--self-collision"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
