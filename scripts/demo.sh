@@ -2,7 +2,7 @@
 # The main job: installs dependencies, builds, and runs the cell demo end to end:
 #  1. creates the default drape database on first run (embedded SQLite at out/demo/drapes.sqlite: the
 #     thesis's 64x46 cm cotton towel, 36 hold points in one quadrant at d = 2/3 cm, 36 views each; the
-#     rest are mirrored), with a progress bar (4.6–5.0 minutes measured on an idle 2-core machine) — an interrupted build
+#     rest are mirrored), with a progress bar (about 17 minutes on a 2-core machine, measured 2026-12-03) — an interrupted build
 #     resumes on the next run;
 #  2. replays the bundled bag (test/data/towel_replay_a.bag: the towel hanging from a gripper in front
 #     of the cell camera, simulated independently at d = 0.5 cm and held at a point that is not a
