@@ -14,6 +14,7 @@
 
 #include "database_sql.h"
 #include "drape_build_steps.h"
+#include "textile_handling/db/build_time_estimate.h"
 #include "textile_handling/sim/memory_budget.h"
 #include "textile_handling/sim/particle_cloth_model.h"
 #include "textile_handling/sim/timing.h"
@@ -342,8 +343,11 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   pass.threads_per_simulation = threads;
   if (c.on_pass_start) c.on_pass_start(pass);
 
-  std::mutex mu;  // the job queue, the report and the callbacks
+  std::mutex mu;  // the job queue, the report, the time estimate and the callbacks
   std::size_t next_job = 0;
+  const auto pass_start = std::chrono::steady_clock::now();
+  const auto now_s = [&pass_start] { return secondsSince(pass_start); };
+  BuildTimeEstimate estimate(workers, pass.to_run);
   int completed = 0;  // simulations of this pass finished, done or failed
   std::exception_ptr fatal;
   bool stop = false;
@@ -355,6 +359,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
         std::lock_guard<std::mutex> lock(mu);
         if (stop || next_job >= jobs.size() || (c.should_stop && c.should_stop())) return;
         job = &jobs[next_job++];
+        if (job->simulate) estimate.started(job->id, now_s());
       }
       try {
         const internal::JobOutcome out = internal::runJob(db_, ctx, *job);
@@ -376,7 +381,17 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
         }
         if (job->simulate) {
           ++completed;
-          if (c.on_progress) c.on_progress(rep.already_done + completed, rep.to_simulate);
+          const double t = now_s();
+          estimate.finished(job->id, t);
+          if (c.on_progress) {
+            DrapeBuildProgress progress;
+            progress.done = rep.already_done + completed;
+            progress.total = rep.to_simulate;
+            progress.done_before = rep.already_done;
+            progress.elapsed_s = t;
+            progress.eta_s = estimate.remainingSeconds(t);
+            c.on_progress(progress);
+          }
         }
       } catch (...) {
         std::lock_guard<std::mutex> lock(mu);

@@ -331,12 +331,12 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
       wdb.stageGeneration(job.textile_id, job.config.material, job.request_spacing, job.request_model);
     if (job.staged) job.config.staged_textile_id = job.textile_id;
     job.config.should_stop = [this] { return stop_requested_.load(); };
-    job.config.on_progress = [&](int done, int total) {
+    job.config.on_progress = [&](const db::DrapeBuildProgress& progress) {
       BuildProgressEvent p = e;
-      p.done = done;
-      p.total = total;
+      p.done = progress.done;
+      p.total = progress.total;
       p.elapsed_s = std::chrono::duration<double>(Clock::now() - start).count();
-      p.eta_s = done > 0 && total > done ? p.elapsed_s / done * (total - done) : 0;
+      p.eta_s = std::max(0.0, progress.eta_s);  // the message's 0 = unknown or done
       emit(p);
     };
     db::DrapeDatabaseBuilder builder(wdb, job.config);

@@ -27,7 +27,7 @@ std::string clockText(double s) {
 
 }  // namespace
 
-std::string formatProgressBar(int done, int total, double elapsed_s, int failed, int width, int done_before) {
+std::string formatProgressBar(int done, int total, double elapsed_s, double eta_s, int failed, int width) {
   const double frac = total > 0 ? std::min(1.0, static_cast<double>(done) / total) : 1.0;
   const int filled = static_cast<int>(std::floor(frac * width));
   std::string bar = "[";
@@ -35,8 +35,7 @@ std::string formatProgressBar(int done, int total, double elapsed_s, int failed,
   if (filled >= width) bar.back() = '=';
   bar += "]";
   char buf[160];
-  const int completed = done - done_before;
-  const double eta = done >= total ? 0.0 : (completed > 0 ? elapsed_s / completed * (total - done) : -1.0);
+  const double eta = done >= total ? 0.0 : eta_s;
   std::snprintf(buf, sizeof buf, " %d/%d simulations%s  elapsed %s  ETA %s", done, total,
                 failed > 0 ? (" (" + std::to_string(failed) + " failed)").c_str() : "", clockText(elapsed_s).c_str(),
                 clockText(eta).c_str());
@@ -49,7 +48,7 @@ BuildProgressPrinter BuildProgressPrinter::forStderr() { return BuildProgressPri
 
 void BuildProgressPrinter::attach(db::DrapeBuildConfig& config) {
   config.on_pass_start = [this](const db::DrapeBuildPass& p) { passStarted(p); };
-  config.on_progress = [this](int done, int total) { progress(done, total); };
+  config.on_progress = [this](const db::DrapeBuildProgress& p) { progress(p); };
   config.on_failure = [this](const db::DrapeBuildFailure& f) { failed(f); };
   config.on_pass_end = [this](const db::DrapeBuildPass& p) { passEnded(p); };
 }
@@ -58,6 +57,7 @@ void BuildProgressPrinter::passStarted(const db::DrapeBuildPass& p) {
   pass_ = p;
   started_ = std::chrono::steady_clock::now();
   done_ = p.already_done;
+  eta_s_ = -1;
   failed_ = 0;
   last_printed_ = -1;
   if (p.to_run == 0) return;  // nothing to run: no header, no bar
@@ -71,8 +71,9 @@ void BuildProgressPrinter::passStarted(const db::DrapeBuildPass& p) {
   printBar(false);
 }
 
-void BuildProgressPrinter::progress(int done, int total) {
-  done_ = done;
+void BuildProgressPrinter::progress(const db::DrapeBuildProgress& p) {
+  done_ = p.done;
+  eta_s_ = p.eta_s;
   printBar(false);
 }
 
@@ -89,7 +90,7 @@ void BuildProgressPrinter::passEnded(const db::DrapeBuildPass& p) {
 void BuildProgressPrinter::printBar(bool final_line) {
   const int completed = done_ - pass_.already_done;
   const int runs = pass_.to_run;
-  const std::string bar = formatProgressBar(done_, pass_.to_simulate, secondsSince(started_), failed_, 30, pass_.already_done);
+  const std::string bar = formatProgressBar(done_, pass_.to_simulate, secondsSince(started_), eta_s_, failed_, 30);
   if (terminal_) {
     out_ << "\r" << bar << (final_line ? "\n" : "") << std::flush;
   } else if ((final_line && completed != last_printed_) ||

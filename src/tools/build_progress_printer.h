@@ -14,10 +14,9 @@ namespace textile_handling {
 namespace tools {
 
 /// Text progress bar: "[=====>    ]  12/36 simulations  elapsed 00:42  ETA 01:23", with
-/// " (N failed)" after the counts when `failed` > 0. `width` is the bar width in characters.
-/// `done_before` of the `done` were done before this build started (a resumed build): the ETA is the
-/// remaining count at the rate of this build's own completions, elapsed / (done - done_before).
-std::string formatProgressBar(int done, int total, double elapsed_s, int failed = 0, int width = 30, int done_before = 0);
+/// " (N failed)" after the counts when `failed` > 0. `width` is the bar width in characters. `eta_s` is
+/// the builder's estimate (DrapeBuildProgress::eta_s); a negative one prints as "--:--".
+std::string formatProgressBar(int done, int total, double elapsed_s, double eta_s, int failed = 0, int width = 30);
 
 /// Prints the progress of builds to one stream. Not thread-safe by itself: the builder calls its
 /// callbacks one at a time. Must outlive every build it is attached to.
@@ -33,7 +32,7 @@ class BuildProgressPrinter {
   void attach(db::DrapeBuildConfig& config);
 
   void passStarted(const db::DrapeBuildPass& pass);
-  void progress(int done, int total);
+  void progress(const db::DrapeBuildProgress& progress);
   void failed(const db::DrapeBuildFailure& failure);
   void passEnded(const db::DrapeBuildPass& pass);
 
@@ -45,6 +44,7 @@ class BuildProgressPrinter {
   db::DrapeBuildPass pass_;
   std::chrono::steady_clock::time_point started_;
   int done_ = 0;          ///< simulated rows of the pass done or failed, including those done before it
+  double eta_s_ = -1;     ///< the builder's last estimate of the remaining time [s]
   int failed_ = 0;        ///< simulations of the pass that failed
   int last_printed_ = -1; ///< simulations completed at the last bar line (not a terminal)
 };

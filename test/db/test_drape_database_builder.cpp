@@ -350,7 +350,15 @@ TEST(DrapeDatabaseBuilder, ReportsPassesProgressAndFailuresThroughCallbacks) {
     }
     EXPECT_TRUE(p.symmetric_grid);
   };
-  c.on_progress = [&](int done, int total) { events.push_back(std::to_string(done) + "/" + std::to_string(total)); };
+  c.on_progress = [&](const DrapeBuildProgress& p) {
+    events.push_back(std::to_string(p.done) + "/" + std::to_string(p.total));
+    EXPECT_EQ(p.done_before, 0);
+    EXPECT_GE(p.elapsed_s, 0.0);
+    EXPECT_GE(p.eta_s, 0.0);  // a simulation has finished: there is an estimate
+    if (p.done == p.total) {
+      EXPECT_EQ(p.eta_s, 0.0);
+    }
+  };
   c.on_failure = [&](const DrapeBuildFailure& f) {
     events.push_back("failed");
     failures.push_back(f);

@@ -59,6 +59,16 @@ TEST(TextileRegistry, RegisterBuildsInTheBackgroundAndReportsProgress) {
   EXPECT_EQ(ev.progress[1].state, "running");
   EXPECT_EQ(ev.progress.back().state, "done") << ev.progress.back().message;
   EXPECT_EQ(ev.progress.back().textile_id, q.textile_id);
+  // Running events after a finished simulation carry the builder's estimate; the last one is 0.
+  bool saw_estimate = false;
+  for (const auto& e : ev.progress) {
+    if (e.state != "running" || e.done == 0) continue;
+    EXPECT_GE(e.eta_s, 0.0);
+    EXPECT_GE(e.elapsed_s, 0.0);
+    if (e.done < e.total && e.eta_s > 0) saw_estimate = true;
+    if (e.done == e.total) EXPECT_EQ(e.eta_s, 0.0);
+  }
+  EXPECT_TRUE(saw_estimate);
   EXPECT_FALSE(ev.changed.empty());
   EXPECT_EQ(ev.changed.back(), q.textile_id);
 }

@@ -13,17 +13,33 @@ using textile_handling::tools::BuildProgressPrinter;
 using textile_handling::tools::formatProgressBar;
 
 TEST(BuildProgress, ProgressBar) {
-  EXPECT_EQ(formatProgressBar(0, 10, 0.0, 0, 10), "[>         ] 0/10 simulations  elapsed 00:00  ETA --:--");
-  EXPECT_EQ(formatProgressBar(5, 10, 62.0, 0, 10), "[=====>    ] 5/10 simulations  elapsed 01:02  ETA 01:02");
-  EXPECT_EQ(formatProgressBar(10, 10, 3725.0, 2, 10),
+  EXPECT_EQ(formatProgressBar(0, 10, 0.0, -1.0, 0, 10), "[>         ] 0/10 simulations  elapsed 00:00  ETA --:--");
+  EXPECT_EQ(formatProgressBar(5, 10, 62.0, 75.4, 0, 10), "[=====>    ] 5/10 simulations  elapsed 01:02  ETA 01:15");
+  EXPECT_EQ(formatProgressBar(10, 10, 3725.0, 12.0, 2, 10),
             "[==========] 10/10 simulations (2 failed)  elapsed 1:02:05  ETA 00:00");
 }
 
-TEST(BuildProgress, EtaOfAResumedBuildCountsOnlyItsOwnCompletions) {
-  // 6 of 10 were done before; this build finished 2 in 60 s: 2 remain, 60 s more (not 20 s).
-  EXPECT_EQ(formatProgressBar(8, 10, 60.0, 0, 10, 6), "[========> ] 8/10 simulations  elapsed 01:00  ETA 01:00");
-  // Nothing finished by this build yet: no estimate.
-  EXPECT_EQ(formatProgressBar(6, 10, 30.0, 0, 10, 6), "[======>   ] 6/10 simulations  elapsed 00:30  ETA --:--");
+namespace {
+db::DrapeBuildProgress progressOf(int done, int total, double eta_s) {
+  db::DrapeBuildProgress p;
+  p.done = done;
+  p.total = total;
+  p.eta_s = eta_s;
+  return p;
+}
+}  // namespace
+
+TEST(BuildProgress, TheBarShowsTheBuildersEstimate) {
+  std::ostringstream out;
+  BuildProgressPrinter printer(out, false);
+  db::DrapeBuildConfig c;
+  printer.attach(c);
+  db::DrapeBuildPass p;
+  p.to_simulate = 2;
+  p.to_run = 2;
+  c.on_pass_start(p);
+  c.on_progress(progressOf(1, 2, 3599.6));
+  EXPECT_NE(out.str().find("1/2 simulations  elapsed 00:00  ETA 1:00:00\n"), std::string::npos) << out.str();
 }
 
 namespace {
@@ -62,10 +78,10 @@ TEST(BuildProgress, PrintsHeaderBarsAndFailuresThroughTheCallbacks) {
   printer.attach(c);
   const db::DrapeBuildPass p = pass(3);
   c.on_pass_start(p);
-  c.on_progress(2, 4);
+  c.on_progress(progressOf(2, 4, 10));
   c.on_failure({17, Vec2(0.1, 0.2), "no rest within max_time 1 s"});
-  c.on_progress(3, 4);
-  c.on_progress(4, 4);
+  c.on_progress(progressOf(3, 4, 5));
+  c.on_progress(progressOf(4, 4, 0));
   c.on_pass_end(p);
   EXPECT_EQ(withoutClocks(out.str()),
             "drape_db: towel: 12 hold points (4 simulated, symmetry xy), 1 already done, 3 to run on 2 worker(s) x 1 "
@@ -93,7 +109,7 @@ TEST(BuildProgress, OnATerminalTheBarIsRedrawnInPlace) {
   db::DrapeBuildConfig c;
   printer.attach(c);
   c.on_pass_start(pass(1));
-  c.on_progress(4, 4);
+  c.on_progress(progressOf(4, 4, 0));
   c.on_pass_end(pass(1));
   const std::string s = out.str();
   EXPECT_EQ(std::count(s.begin(), s.end(), '\r'), 3);

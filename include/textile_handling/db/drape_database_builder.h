@@ -46,6 +46,17 @@ struct DrapeBuildFailure {
   std::string reason;              ///< why (also stored as the row's failure reason)
 };
 
+/// Progress of a pass, as reported to DrapeBuildConfig::on_progress after every finished simulation.
+struct DrapeBuildProgress {
+  int done = 0;          ///< simulated rows of the pass done or failed, those done before the build included
+  int total = 0;         ///< DrapeBuildPass::to_simulate
+  int done_before = 0;   ///< of `done`, rows that were done before this build (a resumed build)
+  double elapsed_s = 0;  ///< wall time since the pass's first simulation started [s]
+  /// Estimated wall time until the pass's last simulation finishes [s] (BuildTimeEstimate); 0 when all
+  /// have finished, -1 when unknown (no simulation of this build has finished).
+  double eta_s = -1;
+};
+
 /// Everything a build needs. The simulation and view settings are stored with every simulation row
 /// (as canonical text, DrapeDatabaseBuilder::parametersText), so a rebuild with other settings plans
 /// new rows instead of mixing results.
@@ -117,9 +128,8 @@ struct DrapeBuildConfig {
   // one at a time (serialised by the builder), from the calling thread or from a worker thread.
   /// Called when a pass has planned its rows, before its first simulation starts.
   std::function<void(const DrapeBuildPass& pass)> on_pass_start;
-  /// Called after every finished simulation, done or failed: `done` simulated rows of the pass are
-  /// done or failed (those done before the build included) of `total` (DrapeBuildPass::to_simulate).
-  std::function<void(int done, int total)> on_progress;
+  /// Called after every finished simulation, done or failed, with the pass's counts and time estimate.
+  std::function<void(const DrapeBuildProgress& progress)> on_progress;
   /// Called for a simulation that failed (the row is marked failed), just before its on_progress call.
   std::function<void(const DrapeBuildFailure& failure)> on_failure;
   /// Called when a pass's workers have stopped (also when a database error ends the pass, before it is
