@@ -32,8 +32,8 @@
 // --shard K/S: only every S-th hold point from the K-th (0-based), to split one grid over processes.
 // --polish N: finish both arms' rest shapes with up to N tight Newton iterations before comparing.
 // DIR/build_whole.png: whole-build wall time against spacing per method, with the corner reference.
-// DIR/build_speed.png: seconds per hold point against the rest-shape difference, one point per hold
-// point and method. Benchmarks, not tests: nothing here asserts timings. Set OMP_WAIT_POLICY=passive.
+// DIR/build_speed.png: seconds per hold point against the rest-shape difference (named points, up to a
+// mirror), one point per hold point and method. Benchmarks, not tests: nothing here asserts timings. Set OMP_WAIT_POLICY=passive.
 //
 // Exit status: 0 done, 2 usage, 4 outputs cannot be written, 5 unexpected error.
 #include <omp.h>
@@ -291,9 +291,9 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
                 << num(r_fast.finish.wall_ms / 1000 + r_fast.finish_run.wall_time, 3) << " s (" << r_fast.finish.iterations << " it, "
                 << r_fast.finish_run.steps << " steps)), named points " << num(1000 * dist.named, 3) << " mm, all " << num(1000 * dist.all, 3) << " mm, named up to a mirror " << num(1000 * mirror_named, 3) << " mm\n";
       const std::string series = "d = " + num(100 * d, 2) + " cm";
-      chart->push_back({r_dyn.wall_seconds, std::max(1e-5, dist.named), "", series + " dynamic"});
+      chart->push_back({r_dyn.wall_seconds, std::max(1e-5, mirror_named), "", series + " dynamic"});
       const bool fell_back = o.fast.method == RestShapeMethod::kQuasiStatic && r_fast.method_used != "quasi_static";
-      chart->push_back({r_fast.wall_seconds, std::max(1e-5, dist.named), "",
+      chart->push_back({r_fast.wall_seconds, std::max(1e-5, mirror_named), "",
                         series + " " + o.fast_label + (fell_back ? ", fell back" : "")});
     }
   }
@@ -334,6 +334,9 @@ std::vector<ChartPoint> chartFromCsv(const std::string& path) {
   };
   const std::size_t c_d = col("spacing_m"), c_dyn = col("dynamic_s"), c_fast = col("fast_s"),
                     c_named = col("named_point_distance_m"), c_method = col("fast_method");
+  // Older rows have no mirror-aware column; where it is empty, the plain distance is used.
+  const auto mirror_it = std::find(header.begin(), header.end(), "mirror_aware_named_distance_m");
+  const std::size_t c_mirror = mirror_it == header.end() ? c_named : static_cast<std::size_t>(mirror_it - header.begin());
   std::vector<ChartPoint> out;
   while (std::getline(in, line)) {
     std::vector<std::string> f;
@@ -349,7 +352,7 @@ std::vector<ChartPoint> chartFromCsv(const std::string& path) {
     f.push_back(cur);
     if (f.size() < header.size()) continue;
     const std::string series = "d = " + num(100 * std::stod(f[c_d]), 2) + " cm";
-    const double named = std::max(1e-5, std::stod(f[c_named]));
+    const double named = std::max(1e-5, std::stod(f[c_mirror].empty() ? f[c_named] : f[c_mirror]));
     out.push_back({std::stod(f[c_dyn]), named, "", series + " dynamic"});
     const std::string& method = f[c_method];
     const bool dynamic_arm = method.rfind("dynamic", 0) == 0 && method.find("failed") == std::string::npos;
@@ -432,7 +435,7 @@ int main(int argc, char** argv) {
     if (!chart.empty()) {
       std::string err;
       if (!writeLogLogChart(o.out + "/build_speed.png", chart, "wall time per hold point [s], one thread",
-                            "largest named-point distance to the dynamic rest shape [m]",
+                            "largest named-point distance to the reference, up to a mirror [m]",
                             "Rest shapes: reference dynamic vs a fast path (towel, 6x6 quadrant grid)", &err))
         std::cerr << "drape_build_bench: chart: " << err << "\n";
     }

@@ -83,8 +83,8 @@ SimulationSettings DrapeBuildConfig::defaultSimulationSettings() {
   s.max_time = 20.0;
   // CG to 1e-3 with warm starts: about 2.5x faster builds than 1e-6 from a cold start, and the error
   // control still measures each step, inexact solve included. Looser solves (0.01, 0.03) are faster
-  // still but let more hold points settle in a neighbouring equilibrium 5-37 mm away; 1e-3 still does
-  // at one checked hold point (29 mm; docs/database.md, "Build speed").
+  // still but let more hold points settle in a neighbouring equilibrium 5-37 mm away; 1e-3 does at one
+  // of the thesis's 36 hold points (29 mm; docs/database.md, "Build speed").
   s.solver.relative_tolerance = 1e-3;
   s.solver.warm_start = true;
   return s;
