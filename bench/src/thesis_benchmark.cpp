@@ -13,6 +13,7 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "textile_handling/bench/material_variation.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
@@ -24,18 +25,6 @@ namespace db {
 namespace {
 
 namespace fs = std::filesystem;
-
-MaterialCurve scaled(const MaterialCurve& c, double k) {
-  if (c.kind() == MaterialCurve::Kind::kTable) {
-    std::vector<Real> y = c.tableY();
-    for (Real& v : y) v *= k;
-    return MaterialCurve::table(c.tableX(), y);
-  }
-  std::vector<std::vector<Real>> coef = c.coefficients();
-  for (auto& piece : coef)
-    for (Real& v : piece) v *= k;
-  return MaterialCurve::polynomial(c.breakpoints(), coef);
-}
 
 void removeDatabase(const std::string& path) {
   std::error_code ec;
@@ -178,12 +167,7 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
     v.name = "material";
     v.config = base;
     v.config.textile.name = "towel_perturbed_material";
-    v.config.material.name = "cotton_perturbed";
-    v.config.material.bend_warp = scaled(base.material.bend_warp, 1.3);
-    v.config.material.bend_weft = scaled(base.material.bend_weft, 1.3);
-    v.config.material.shear_warp = scaled(base.material.shear_warp, 0.8);
-    v.config.material.shear_weft = scaled(base.material.shear_weft, 0.8);
-    v.config.material.areal_density = base.material.areal_density * 1.1;
+    v.config.material = bench::scaledMaterial(base.material, 1.3, 0.8, 1.1, "cotton_perturbed");
     v.description = "cotton with bending x1.3, shear x0.8, areal density x1.1, d = " + fmt(cfg.spacing * 100, 1) + " cm";
     variants.push_back(v);
   }

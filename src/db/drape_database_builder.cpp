@@ -159,6 +159,9 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   }
   // Only when on, so that the parameter texts of builds without collision stay as they were.
   if (c.self_collision) t += "self_collision: v3\n";
+  if (c.start_tilt_deg != 0)
+    t += "start_tilt_deg: " + internal::fmt17(c.start_tilt_deg) + "\nstart_tilt_axis_deg: " +
+         internal::fmt17(c.start_tilt_axis_deg) + "\n";
   // Only for the quasi-static method (dynamic builds keep their former texts); it never applies with
   // self-collision (rest_shape_search.h), so those builds are dynamic and keep theirs too.
   if (c.rest_shape.method == RestShapeMethod::kQuasiStatic && !c.self_collision) t += c.rest_shape.text() + "\n";
@@ -179,6 +182,8 @@ DrapeSceneSpec DrapeDatabaseBuilder::sceneSpec(const DrapeBuildConfig& c, const 
   s.settings = c.settings;
   s.settings.trajectory_every = 0;
   s.self_collision = c.self_collision;
+  s.start_tilt_deg = c.start_tilt_deg;
+  s.start_tilt_axis_deg = c.start_tilt_axis_deg;
   return s;
 }
 

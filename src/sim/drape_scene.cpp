@@ -68,6 +68,9 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   if (spec.hold.empty() && spec.pinned_regions.empty())
     throw SceneError("scene holds nothing: give at least one hold point or pinned region");
   if (!spec.hold_position.allFinite()) throw SceneError("hold position is not finite");
+  if (!(std::abs(spec.start_tilt_deg) <= 90) || !std::isfinite(spec.start_tilt_axis_deg))
+    throw SceneError("start: tilt_deg must be in [-90, 90] and tilt_axis_deg finite, got " +
+                     std::to_string(spec.start_tilt_deg) + " and " + std::to_string(spec.start_tilt_axis_deg));
   if (spec.lift_times.size() != spec.lift_offsets.size())
     throw SceneError("lift: times and offsets differ in length");
   for (size_t k = 0; k < spec.lift_times.size(); ++k) {
@@ -105,6 +108,12 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   for (Index r = 0; r < n; ++r) {
     const Vec2 q = scene.grid.activePosition(r);
     positions.segment<3>(3 * r) = Vec3(q.x(), q.y(), 0) + scene.textile_to_world;
+  }
+  if (spec.start_tilt_deg != 0) {
+    const Real a = spec.start_tilt_axis_deg * kPi / 180;
+    const Eigen::AngleAxis<Real> tilt(spec.start_tilt_deg * kPi / 180, Vec3(std::cos(a), std::sin(a), 0));
+    const Vec3 pivot = spec.hold_position;
+    for (Index r = 0; r < n; ++r) positions.segment<3>(3 * r) = pivot + tilt * (positions.segment<3>(3 * r) - pivot);
   }
   scene.x0 = VecX::Zero(model->numDofs());
   model->setPositions(positions, scene.x0);
@@ -562,7 +571,7 @@ void parseObstacles(const YAML::Node& ob, ObstacleSpec& o) {
 
 void parseSceneRoot(const YAML::Node& root, const std::string& base_dir, DrapeSceneSpec& s) {
   checkKeys(root, "", {"textile", "material", "spacing_m", "hold", "pinned_regions", "model", "simulation",
-                       "collision", "obstacles"});
+                       "collision", "obstacles", "start"});
   for (const char* key : {"textile", "material", "spacing_m", "hold"}) requireKey(root, key, "");
   s.textile = parseTextile(root["textile"]);
   s.material = parseMaterial(root["material"], base_dir);
@@ -576,6 +585,12 @@ void parseSceneRoot(const YAML::Node& root, const std::string& base_dir, DrapeSc
   if (const YAML::Node m = root["simulation"]) parseSimulation(m, s.settings);
   if (const YAML::Node c = root["collision"]) parseCollision(c, s);
   if (const YAML::Node ob = root["obstacles"]) parseObstacles(ob, s.obstacles);
+  if (const YAML::Node st = root["start"]) {
+    if (!st.IsMap()) fail("'start' must be a map");
+    checkKeys(st, "start", {"tilt_deg", "tilt_axis_deg"});
+    if (st["tilt_deg"]) s.start_tilt_deg = getReal(st["tilt_deg"], "start.tilt_deg");
+    if (st["tilt_axis_deg"]) s.start_tilt_axis_deg = getReal(st["tilt_axis_deg"], "start.tilt_axis_deg");
+  }
 }
 
 }  // namespace

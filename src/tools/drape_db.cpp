@@ -10,6 +10,7 @@
 //   drape_db export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]
 //   drape_db bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]
 //                   [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]
+//                   [--cg-tolerance R] [--cg-cold-start]
 //
 // Exit status: 0 success, 1 unexpected error, 2 usage or bad input, 3 database error (cannot open, unknown
 // schema version, damaged data), 4 build finished but some simulations failed, 5 out of memory.
@@ -88,6 +89,7 @@ const char* kUsage =
     "  export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
     "  bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]\n"
     "         [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]\n"
+    "         [--cg-tolerance R] [--cg-cold-start]\n"
     "exit status: 0 ok, 1 error, 2 usage/bad input, 3 database error, 4 some simulations failed, 5 out of memory\n";
 
 // Minimal option parser: "--key value" pairs and "--flag" switches; repeated keys are kept in order.
@@ -556,7 +558,7 @@ int cmdExport(const Args& a) {
 
 int cmdBench(const Args& a) {
   a.allowOnly({"--out", "--quick", "--resume", "--threads", "--pairs", "--seed", "--spacing", "--heldout-spacing",
-               "--frame", "--shift", "--thesis-shift", "--no-bracket"});
+               "--frame", "--shift", "--thesis-shift", "--no-bracket", "--cg-tolerance", "--cg-cold-start"});
   ThesisBenchmarkConfig c;
   c.out_dir = a.require("--out");
   c.quick = a.has("--quick");
@@ -587,7 +589,19 @@ int cmdBench(const Args& a) {
   if (a.has("--thesis-shift")) c.max_shift_x_m = c.max_shift_y_m = -1;
   if (a.has("--no-bracket")) c.bracket_hold_points = false;
   tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
-  c.prepare_build = [&progress](DrapeBuildConfig& build) { progress.attach(build); };
+  // Solver settings of every simulation of the run (database and held-out shapes), to compare the
+  // builder's defaults with tight solves on the same benchmark.
+  std::optional<double> cg_tolerance;
+  if (a.has("--cg-tolerance")) {
+    cg_tolerance = number(a.get("--cg-tolerance"), "--cg-tolerance");
+    if (!(*cg_tolerance > 0 && *cg_tolerance < 1)) throw UsageError("--cg-tolerance must be in (0, 1)");
+  }
+  const bool cold = a.has("--cg-cold-start");
+  c.prepare_build = [&progress, cg_tolerance, cold](DrapeBuildConfig& build) {
+    progress.attach(build);
+    if (cg_tolerance) build.settings.solver.relative_tolerance = *cg_tolerance;
+    if (cold) build.settings.solver.warm_start = false;
+  };
   runThesisBenchmark(c);  // the benchmark library (bench/): drape_db only parses its options
   return kExitOk;
 }
@@ -607,7 +621,8 @@ int main(int argc, char** argv) {
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));
-    if (cmd == "bench") return cmdBench(Args(argc, argv, 2, {"--quick", "--resume", "--thesis-shift", "--no-bracket"}));
+    if (cmd == "bench")
+      return cmdBench(Args(argc, argv, 2, {"--quick", "--resume", "--thesis-shift", "--no-bracket", "--cg-cold-start"}));
     std::cerr << "drape_db: unknown command '" << cmd << "'\n" << kUsage;
     return kExitUsage;
   } catch (const UsageError& e) {

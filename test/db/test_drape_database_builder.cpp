@@ -173,7 +173,16 @@ TEST(DrapeDatabaseBuilder, ParameterTextCoversTheSolverSettingsThatChangeShapes)
   c = base;
   c.settings.solver.relative_tolerance = base.settings.solver.relative_tolerance * 2;
   variants.emplace_back("CG tolerance", c);
+  c = base;
+  c.start_tilt_deg = 30;
+  variants.emplace_back("start tilt", c);
+  const std::string tilted = DrapeDatabaseBuilder::parametersText(c);
+  c.start_tilt_axis_deg = 90;
+  variants.emplace_back("start tilt axis", c);
+  EXPECT_NE(DrapeDatabaseBuilder::parametersText(c), tilted);
   for (const auto& [what, v] : variants) EXPECT_NE(DrapeDatabaseBuilder::parametersText(v), t0) << what;
+  // A flat start (the default) adds nothing, so existing databases keep their rows.
+  EXPECT_EQ(t0.find("start_tilt"), std::string::npos);
 }
 
 TEST(DrapeDatabaseBuilder, ParallelWorkersGiveTheSameShapes) {

@@ -121,6 +121,30 @@ TEST(SceneHold, PointsOutsideTheTextileAreRejectedNamingThem) {
   EXPECT_TRUE(contains(message, "pinned region 1")) << message;
 }
 
+TEST(SceneStart, ATiltedStartRotatesTheSheetAboutTheHeldPoint) {
+  const DrapeScene flat = buildDrapeScene(parseDrapeSceneYaml(kMinimal));
+  const DrapeScene tilted =
+      buildDrapeScene(parseDrapeSceneYaml(kMinimal + "start: {tilt_deg: 90, tilt_axis_deg: 0}\n"));
+  const Index h = tilted.hold_particle;
+  ASSERT_EQ(h, flat.hold_particle);
+  const Vec3 pivot = tilted.x0.segment<3>(3 * h);
+  EXPECT_LT((pivot - flat.x0.segment<3>(3 * h)).norm(), 1e-12);  // the held particle stays
+  EXPECT_LT((pivot - tilted.pins.anchors.front()).norm(), 1e-12);
+  // 90 degrees about the textile's x axis (right-handed): textile +y goes to world +z. The held corner
+  // (corner_ul, the top of the square) has every other particle at y below it: they all go down.
+  for (Index p = 0; p < flat.model->numNodes(); ++p) {
+    const Vec3 d0 = flat.x0.segment<3>(3 * p) - pivot, d1 = tilted.x0.segment<3>(3 * p) - pivot;
+    EXPECT_NEAR(d1.norm(), d0.norm(), 1e-12);
+    EXPECT_NEAR(d1.x(), d0.x(), 1e-12);
+    EXPECT_NEAR(d1.z(), d0.y(), 1e-12);
+    EXPECT_NEAR(d1.y(), 0.0, 1e-12);
+  }
+  EXPECT_TRUE(contains(buildError(kMinimal + "start: {tilt_deg: 91}\n"), "start: tilt_deg must be in [-90, 90]"));
+  EXPECT_TRUE(contains(parseError(kMinimal + "start: {tilt_deg: .nan}\n"), "start.tilt_deg"));
+  EXPECT_TRUE(contains(parseError(kMinimal + "start: {tilt: 10}\n"), "unknown key 'start.tilt'"));
+  EXPECT_TRUE(contains(parseError(kMinimal + "start: 10\n"), "'start' must be a map"));
+}
+
 TEST(SceneLimits, ListsAreBoundedBeforeTheyAreCopied) {
   // (test_outline_limits.cpp refuses 100,000 vertices and named points at the geometry level.)
   std::string outline = "[";

@@ -87,6 +87,11 @@ struct DrapeBuildConfig {
   /// Cloth model and options (any registered model; its fingerprint lines go into the parameter text).
   ClothModelSpec model = defaultModelSpec("particle_kes");
   SimulationSettings settings = defaultSimulationSettings();
+  /// Starting pose of every simulation (DrapeSceneSpec::start_tilt_deg / start_tilt_axis_deg): the flat
+  /// sheet tilted about a horizontal line through the hold point; 0 = flat (the thesis). Written into
+  /// the parameter text only when non-zero.
+  Real start_tilt_deg = 0;
+  Real start_tilt_axis_deg = 0;
   /// Self-collision v3 with the contact forces (default SelfCollisionOptions, as the demo scene;
   /// docs/collision.md) in every simulation. Off by default: about 1.7 times the simulation cost; without
   /// it a rest shape can pass through itself (docs/database.md). Written into the parameter text only when on.

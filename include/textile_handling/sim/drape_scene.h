@@ -42,6 +42,12 @@ struct DrapeSceneSpec {
   /// Axis-aligned rectangles (x0, y0, x1, y1) in the textile frame whose particles are pinned,
   /// e.g. the 50x50 cm table of the thesis's tablecloth validation.
   std::vector<Eigen::Matrix<Real, 4, 1>> pinned_regions;
+  /// Starting pose (scene key start: {tilt_deg, tilt_axis_deg}): the flat sheet is released rotated by
+  /// start_tilt_deg (|.| <= 90) about the horizontal line through the first held point whose direction
+  /// is start_tilt_axis_deg from the textile's x axis (right-handed about that direction). 0 = the
+  /// thesis's flat horizontal sheet. Another start can lead to another equilibrium (docs/simulation.md).
+  Real start_tilt_deg = 0;
+  Real start_tilt_axis_deg = 0;
   std::vector<Real> lift_times;                ///< waypoints of the holder offset [s]
   std::vector<Vec3> lift_offsets;              ///< [m]
   /// Cloth model and its options (scene key model:; the names and keys of ClothModelRegistry).

@@ -1,0 +1,192 @@
+// foreign_drape_bench: recognition on drapes the database did not make (bench/include/textile_handling/
+// bench/foreign_drapes.h; docs/recognition.md, "Foreign drapes").
+//
+//   foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth]
+//                       [--workers N]
+//
+// Builds (or resumes) the held-out drapes into DIR/foreign_drapes.sqlite: N hold points per variant
+// anywhere on the towel (default 6; variants: Choi-Ko; two materials; d = 0.8 cm with self-collision and
+// a tilted start; Choi-Ko with self-collision and a tilted start). Renders each drape from `--views`
+// random camera azimuths (default 3) with colour, depth and noise, plus for each a second image after a
+// gripper turn of 90 degrees, and recognises every image alone and every pair fused, with the
+// recognizer's defaults against DB. Rows: DIR/foreign_drapes.csv (one per recognition); charts:
+// DIR/foreign_hold_vs_corner.png (hold-point error against lowest-corner error, one view and two);
+// headline figures on stdout. A benchmark, not a test: nothing asserts. Set OMP_WAIT_POLICY=passive.
+// Exit status: 0 done, 2 usage, 4 outputs cannot be written, 5 unexpected error.
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "textile_handling/bench/bench_chart.h"
+#include "textile_handling/bench/foreign_drapes.h"
+#include "textile_handling/sim/timing.h"
+
+using namespace textile_handling;
+
+namespace {
+
+struct Options {
+  std::string database, out = "out/foreign_drape_bench";
+  int holds = 6, views = 3, workers = 0;
+  std::uint64_t seed = 1;
+  bool depth = true;
+};
+
+int usage(const std::string& problem) {
+  std::cerr << "foreign_drape_bench: " << problem
+            << "\nusage: foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth] "
+               "[--workers N]\n";
+  return 2;
+}
+
+struct Summary {
+  int results = 0, failures = 0, hold_within_5cm = 0, lowest_within_3cm = 0, best_within_3cm = 0, all_within_5cm = 0;
+  std::vector<double> hold_errors, corner_errors, ms;
+  void add(const bench::ForeignScore& s) {
+    ++results;
+    if (!s.success) {
+      ++failures;
+      return;
+    }
+    ms.push_back(s.processing_ms);
+    hold_errors.push_back(s.hold_error_m);
+    if (s.hold_error_m <= 0.05) ++hold_within_5cm;
+    if (s.lowest_corner_error_m >= 0 && s.lowest_corner_error_m <= 0.03) ++lowest_within_3cm;
+    if (s.best_corner_error_m >= 0 && s.best_corner_error_m <= 0.03) ++best_within_3cm;
+    if (s.max_corner_error_m >= 0 && s.max_corner_error_m <= 0.05) ++all_within_5cm;
+    corner_errors.insert(corner_errors.end(), s.corner_error_m.begin(), s.corner_error_m.end());
+  }
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return -1;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+std::string pct(int k, int n) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.0f %%", n > 0 ? 100.0 * k / n : 0.0);
+  return b;
+}
+
+void printSummary(const std::string& what, const Summary& s) {
+  std::printf("%-10s %3d results (%d not a success): hold within 5 cm %s (median %.1f cm); corners median %.1f cm; "
+              "lowest corner within 3 cm %s; best corner within 3 cm %s; all corners within 5 cm %s; %.0f ms median\n",
+              what.c_str(), s.results, s.failures, pct(s.hold_within_5cm, s.results).c_str(), 100 * median(s.hold_errors),
+              100 * median(s.corner_errors), pct(s.lowest_within_3cm, s.results).c_str(),
+              pct(s.best_within_3cm, s.results).c_str(), pct(s.all_within_5cm, s.results).c_str(), median(s.ms));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--no-depth") {
+      o.depth = false;
+      continue;
+    }
+    if (i + 1 >= argc) return usage(a + " needs a value");
+    const std::string v = argv[++i];
+    if (a == "--database") o.database = v;
+    else if (a == "--out") o.out = v;
+    else if (a == "--holds") o.holds = std::atoi(v.c_str());
+    else if (a == "--views") o.views = std::atoi(v.c_str());
+    else if (a == "--workers") o.workers = std::atoi(v.c_str());
+    else if (a == "--seed") o.seed = std::strtoull(v.c_str(), nullptr, 10);
+    else return usage("unknown option " + a);
+  }
+  if (o.database.empty()) return usage("--database is required");
+  if (o.holds < 1 || o.views < 1 || o.workers < 0) return usage("--holds and --views must be >= 1, --workers >= 0");
+  std::error_code ec;
+  std::filesystem::create_directories(o.out, ec);
+  std::ofstream csv(o.out + "/foreign_drapes.csv");
+  if (!csv) {
+    std::cerr << "foreign_drape_bench: cannot write " << o.out << "/foreign_drapes.csv\n";
+    return 4;
+  }
+  try {
+    bench::ForeignDrapeSetOptions so;
+    so.holds_per_variant = o.holds;
+    so.seed = o.seed;
+    so.workers = o.workers;
+    const auto variants = bench::foreignDrapeVariants(so);
+    int failed = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::vector<bench::ForeignDrape> drapes = bench::buildForeignDrapes(
+        o.out + "/foreign_drapes.sqlite", variants, so, &failed, [](const std::string& m) { std::cerr << m << "\n"; });
+    std::cerr << drapes.size() << " held-out drapes (" << failed << " simulations failed) in "
+              << secondsSince(t0) << " s\n";
+
+    recognition::RecognizerOptions ro;
+    ro.textile_name = "towel";
+    const recognition::TextileRecognizer rec(o.database, ro);
+    bench::ForeignViewOptions vo;
+    vo.depth = o.depth;
+    csv << "variant,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
+           "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
+    Summary one, two;
+    std::vector<ChartPoint> chart;
+    std::mt19937_64 rng(o.seed + 99);
+    std::uniform_real_distribution<double> az(0.0, 360.0);
+    auto recognise = [&](const bench::ForeignDrape& d, const std::vector<bench::ForeignView>& views) {
+      std::vector<recognition::CameraObservation> obs;
+      for (const auto& v : views) obs.push_back(v.observation);
+      bench::ForeignScore s;
+      try {
+        s = bench::scoreRecognition(d, views.front().camera, obs.size() == 1 ? rec.recognize(obs.front()) : rec.recognize(obs));
+      } catch (const recognition::RecognitionError& e) {
+        s.success = false;
+        s.reason = e.what();
+      }
+      return s;
+    };
+    for (const bench::ForeignDrape& d : drapes) {
+      for (int k = 0; k < o.views; ++k) {
+        const double a = az(rng);
+        const std::uint64_t seed = rng();
+        std::vector<bench::ForeignView> pair = {bench::renderForeignView(d, a, vo, seed),
+                                                bench::renderForeignView(d, a + vo.turn_deg, vo, seed + 1)};
+        pair[1].observation.relative_view_deg = vo.turn_deg;
+        const bench::ForeignScore s1 = recognise(d, {pair[0]});
+        const bench::ForeignScore s2 = recognise(d, pair);
+        for (const auto* s : {&s1, &s2}) {
+          const int n = s == &s1 ? 1 : 2;
+          (n == 1 ? one : two).add(*s);
+          double mean = 0;
+          for (double e : s->corner_error_m) mean += e / s->corner_error_m.size();
+          std::string reason = s->reason;
+          std::replace(reason.begin(), reason.end(), '"', '\'');
+          csv << d.variant << "," << d.hold.x() << "," << d.hold.y() << "," << n << "," << a << "," << s->success << ",\""
+              << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
+              << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
+              << s->confidence << "," << s->processing_ms << "\n";
+          if (s->success && s->lowest_corner_error_m >= 0)
+            chart.push_back({std::max(1e-3, 100 * s->hold_error_m), std::max(1e-2, 100 * s->lowest_corner_error_m), "",
+                             n == 1 ? "one image" : "two images, 90 deg turn"});
+        }
+        std::cerr << d.variant << " hold (" << d.hold.x() << ", " << d.hold.y() << ") az " << a << ": one image "
+                  << (s1.success ? std::to_string(100 * s1.hold_error_m) + " cm" : "failed") << ", two "
+                  << (s2.success ? std::to_string(100 * s2.hold_error_m) + " cm" : "failed") << "\n";
+      }
+    }
+    printSummary("one image", one);
+    printSummary("two images", two);
+    std::string err;
+    if (!writeLogLogChart(o.out + "/foreign_hold_vs_corner.png", chart, "hold-point error [cm]",
+                          "lowest-corner error [cm]", "Foreign drapes: hold point vs lowest corner", &err))
+      std::cerr << "foreign_drape_bench: chart: " << err << "\n";
+  } catch (const std::exception& e) {
+    std::cerr << "foreign_drape_bench: " << e.what() << "\n";
+    return 5;
+  }
+  return 0;
+}
