@@ -2,7 +2,7 @@
 // bench/foreign_drapes.h; docs/recognition.md, "Foreign drapes").
 //
 //   foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth]
-//                       [--workers N]
+//                       [--workers N] [--variants NAME,NAME,...] [--max-time S]
 //
 // Builds (or resumes) the held-out drapes into DIR/foreign_drapes.sqlite: N hold points per variant
 // anywhere on the towel (default 6; variants: Choi-Ko; two materials; d = 0.8 cm with self-collision and
@@ -20,6 +20,7 @@
 #include <fstream>
 #include <iostream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,8 @@ namespace {
 struct Options {
   std::string database, out = "out/foreign_drape_bench";
   int holds = 6, views = 3, workers = 0;
+  double max_time_s = 30.0;
+  std::vector<std::string> variants;  ///< empty = all
   std::uint64_t seed = 1;
   bool depth = true;
 };
@@ -41,7 +44,7 @@ struct Options {
 int usage(const std::string& problem) {
   std::cerr << "foreign_drape_bench: " << problem
             << "\nusage: foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth] "
-               "[--workers N]\n";
+               "[--workers N] [--variants NAME,...] [--max-time S]\n";
   return 2;
 }
 
@@ -102,10 +105,16 @@ int main(int argc, char** argv) {
     else if (a == "--views") o.views = std::atoi(v.c_str());
     else if (a == "--workers") o.workers = std::atoi(v.c_str());
     else if (a == "--seed") o.seed = std::strtoull(v.c_str(), nullptr, 10);
+    else if (a == "--max-time") o.max_time_s = std::atof(v.c_str());
+    else if (a == "--variants") {
+      std::stringstream ss(v);
+      for (std::string name; std::getline(ss, name, ',');) o.variants.push_back(name);
+    }
     else return usage("unknown option " + a);
   }
   if (o.database.empty()) return usage("--database is required");
-  if (o.holds < 1 || o.views < 1 || o.workers < 0) return usage("--holds and --views must be >= 1, --workers >= 0");
+  if (o.holds < 1 || o.views < 1 || o.workers < 0 || !(o.max_time_s > 0))
+    return usage("--holds and --views must be >= 1, --workers >= 0, --max-time > 0");
   std::error_code ec;
   std::filesystem::create_directories(o.out, ec);
   std::ofstream csv(o.out + "/foreign_drapes.csv");
@@ -118,7 +127,12 @@ int main(int argc, char** argv) {
     so.holds_per_variant = o.holds;
     so.seed = o.seed;
     so.workers = o.workers;
-    const auto variants = bench::foreignDrapeVariants(so);
+    so.max_time_s = o.max_time_s;
+    std::vector<bench::ForeignDrapeVariant> variants;
+    for (auto& v : bench::foreignDrapeVariants(so))
+      if (o.variants.empty() || std::find(o.variants.begin(), o.variants.end(), v.name) != o.variants.end())
+        variants.push_back(std::move(v));
+    if (variants.empty()) return usage("no variant of that name (choi_ko, stiff_light, soft_heavy, fine_collision, choi_ko_collision)");
     int failed = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const std::vector<bench::ForeignDrape> drapes = bench::buildForeignDrapes(
@@ -131,7 +145,7 @@ int main(int argc, char** argv) {
     const recognition::TextileRecognizer rec(o.database, ro);
     bench::ForeignViewOptions vo;
     vo.depth = o.depth;
-    csv << "variant,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
+    csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
     Summary one, two;
     std::vector<ChartPoint> chart;
@@ -151,10 +165,11 @@ int main(int argc, char** argv) {
     };
     for (const bench::ForeignDrape& d : drapes) {
       for (int k = 0; k < o.views; ++k) {
-        const double a = az(rng);
+        const double a = (k + az(rng) / 360.0) * 360.0 / o.views;  // stratified: every view count covers the circle
         const std::uint64_t seed = rng();
         std::vector<bench::ForeignView> pair = {bench::renderForeignView(d, a, vo, seed),
                                                 bench::renderForeignView(d, a + vo.turn_deg, vo, seed + 1)};
+        pair[0].observation.relative_view_deg = 0.0;
         pair[1].observation.relative_view_deg = vo.turn_deg;
         const bench::ForeignScore s1 = recognise(d, {pair[0]});
         const bench::ForeignScore s2 = recognise(d, pair);
@@ -165,7 +180,7 @@ int main(int argc, char** argv) {
           for (double e : s->corner_error_m) mean += e / s->corner_error_m.size();
           std::string reason = s->reason;
           std::replace(reason.begin(), reason.end(), '"', '\'');
-          csv << d.variant << "," << d.hold.x() << "," << d.hold.y() << "," << n << "," << a << "," << s->success << ",\""
+          csv << d.variant << "," << d.rest_reached << "," << d.hold.x() << "," << d.hold.y() << "," << n << "," << a << "," << s->success << ",\""
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "\n";

@@ -45,6 +45,10 @@ std::vector<ForeignDrapeVariant> foreignDrapeVariants(const ForeignDrapeSetOptio
   base.bracket_hold_points = false;
   base.views.count = 1;             // the rows are only used as shapes
   base.settings.max_time = o.max_time_s;
+  // A drape that still creeps at the time cap is a drape a camera could see: kept (rest_reached false,
+  // reported) rather than retried with smaller steps, which bounds the set's cost.
+  base.require_rest = false;
+  base.retry_with_smaller_steps = false;
   base.workers = o.workers;
   base.spacing = 0.01;
   std::vector<ForeignDrapeVariant> out;
@@ -110,6 +114,7 @@ std::vector<ForeignDrape> buildForeignDrapes(const std::string& path, const std:
       if (s.parameters != params) continue;
       ForeignDrape d;
       d.variant = v.name;
+      d.rest_reached = s.rest_reached;
       d.mesh = db::loadDrapeMesh(hdb, s.id);
       d.grid = grid;
       d.hold = grid.activePosition(d.mesh.held_particle);

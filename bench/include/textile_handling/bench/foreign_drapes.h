@@ -32,7 +32,7 @@ struct ForeignDrapeSetOptions {
   std::uint64_t seed = 1;
   /// Share of hold points drawn on the outline (edges and corners); the rest are uniform inside.
   double edge_share = 0.3;
-  double max_time_s = 20.0;  ///< simulated-time cap of a held-out simulation [s]
+  double max_time_s = 30.0;  ///< simulated-time cap of a held-out simulation [s] (a drape not at rest by then is kept)
   int workers = 0;           ///< held-out simulations at once (0 = automatic)
 };
 
@@ -46,6 +46,7 @@ std::vector<ForeignDrapeVariant> foreignDrapeVariants(const ForeignDrapeSetOptio
 struct ForeignDrape {
   std::string variant;
   Vec2 hold = Vec2::Zero();    ///< the held particle's position in the textile frame [m]
+  bool rest_reached = true;    ///< false: still moving at the time cap (kept as seen)
   db::StoredDrapeMesh mesh;    ///< world frame, z up
   ParticleGrid grid;           ///< the held-out simulation's particle grid
 };
