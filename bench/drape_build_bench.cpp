@@ -4,8 +4,8 @@
 //
 // The reference arm is the builder's dynamic run with the linear systems solved tightly (CG relative
 // tolerance 1e-6, cold start): error-controlled steps of 0.1 mm, dt_max 40 ms, no self-collision. The
-// fast arm starts from DrapeBuildConfig::defaultSimulationSettings() (CG 0.01, warm start) and applies
-// the --fast* options.
+// fast arm starts from DrapeBuildConfig::defaultSimulationSettings() (the same tight solves) and applies
+// the --fast* options, e.g. --fast-cg-tolerance 0.001 --fast-cg-warm-start.
 //
 //   drape_build_bench [--out DIR] [--spacings D1,D2,...] [--grid NXxNY] [--holds K] [--mode holds|build|both]
 //                     [--workers N] [--repeats R] [--corner-reference] [--settle SPEED,MEAN,DURATION]

@@ -11,6 +11,7 @@
 // gripper turn of 90 degrees, and recognises every image alone and every pair fused, with the
 // recognizer's defaults against DB. Rows: DIR/foreign_drapes.csv (one per recognition); charts:
 // DIR/foreign_hold_vs_corner.png (hold-point error against lowest-corner error, one view and two);
+// DIR/foreign_corners.csv (one row per reported corner: whether the images saw it, and its error);
 // headline figures on stdout. A benchmark, not a test: nothing asserts. Set OMP_WAIT_POLICY=passive.
 // Exit status: 0 done, 2 usage, 4 outputs cannot be written, 5 unexpected error.
 #include <algorithm>
@@ -117,8 +118,8 @@ int main(int argc, char** argv) {
     return usage("--holds and --views must be >= 1, --workers >= 0, --max-time > 0");
   std::error_code ec;
   std::filesystem::create_directories(o.out, ec);
-  std::ofstream csv(o.out + "/foreign_drapes.csv");
-  if (!csv) {
+  std::ofstream csv(o.out + "/foreign_drapes.csv"), corners_csv(o.out + "/foreign_corners.csv");
+  if (!csv || !corners_csv) {
     std::cerr << "foreign_drape_bench: cannot write " << o.out << "/foreign_drapes.csv\n";
     return 4;
   }
@@ -147,7 +148,10 @@ int main(int argc, char** argv) {
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
+    corners_csv << "variant,views,corner,observed,images_observed,images_in_mask,depth_gap_m,error_m\n";
     Summary one, two;
+    // Corner errors split by the observation flag, per number of images.
+    std::vector<double> seen_err[3], unseen_err[3];
     std::vector<ChartPoint> chart;
     std::mt19937_64 rng(o.seed + 99);
     std::uniform_real_distribution<double> az(0.0, 360.0);
@@ -184,6 +188,13 @@ int main(int argc, char** argv) {
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "\n";
+          for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
+            const auto& ob = s->corner_observation[c];
+            corners_csv << d.variant << "," << n << "," << s->corner_names[c] << "," << ob.observed() << ","
+                        << ob.images_observed << "," << ob.images_in_mask << "," << ob.depth_gap_m << ","
+                        << s->corner_error_m[c] << "\n";
+            (ob.observed() ? seen_err[n] : unseen_err[n]).push_back(s->corner_error_m[c]);
+          }
           if (s->success && s->lowest_corner_error_m >= 0)
             chart.push_back({std::max(1e-3, 100 * s->hold_error_m), std::max(1e-2, 100 * s->lowest_corner_error_m), "",
                              n == 1 ? "one image" : "two images, 90 deg turn"});
@@ -195,6 +206,16 @@ int main(int argc, char** argv) {
     }
     printSummary("one image", one);
     printSummary("two images", two);
+    for (int n = 1; n <= 2; ++n) {
+      auto within = [](const std::vector<double>& v) {
+        return static_cast<int>(std::count_if(v.begin(), v.end(), [](double e) { return e <= 0.03; }));
+      };
+      std::printf("%d image(s): observed corners %zu (median error %.1f cm, within 3 cm %s), not observed %zu (median "
+                  "%.1f cm, within 3 cm %s)\n",
+                  n, seen_err[n].size(), 100 * median(seen_err[n]), pct(within(seen_err[n]), static_cast<int>(seen_err[n].size())).c_str(),
+                  unseen_err[n].size(), 100 * median(unseen_err[n]),
+                  pct(within(unseen_err[n]), static_cast<int>(unseen_err[n].size())).c_str());
+    }
     std::string err;
     if (!writeLogLogChart(o.out + "/foreign_hold_vs_corner.png", chart, "hold-point error [cm]",
                           "lowest-corner error [cm]", "Foreign drapes: hold point vs lowest corner", &err))

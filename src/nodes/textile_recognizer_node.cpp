@@ -81,6 +81,9 @@ RecognitionResult resultMessage(const recognition::RecognitionResult& res, const
     const Eigen::Isometry3d pose_gripper = gripper_camera * pose_camera;
     out.grasp_names.push_back(g.name);
     out.grasp_kinds.push_back(g.kind);
+    out.grasp_observed.push_back(g.observation.observed());
+    out.grasp_observed_images.push_back(g.observation.images_observed);
+    out.grasp_depth_gap_m.push_back(g.observation.depth_gap_m);
     out.grasp_poses.poses.push_back(tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix())));
     geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose_gripper);
     t.header = out.header;

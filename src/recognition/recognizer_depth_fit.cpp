@@ -264,6 +264,18 @@ void addGraspPoses(RecognitionRun& run) {
     } else {
       res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);
     }
+    // Which points the images show (every image, depth or not; the poses are in the first image's H).
+    std::vector<GraspPointView> seen;
+    for (std::size_t i = 0; i < n; ++i) {
+      GraspPointView v;
+      v.mask = imgs[i].mask;
+      v.depth = imgs[i].depth_m;
+      v.intrinsics = imgs[i].g.intrinsics;
+      v.rotation = imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
+      v.translation = imgs[i].g.hold_camera;
+      seen.push_back(v);
+    }
+    for (GraspPose& gp : res.grasp_poses) gp.observation = observeGraspPoint(gp.position, seen, o.observation);
     res.frame = wli.index.frame;
     res.query_masks = run.canonical(wli.index.frame);
     res.matched_mask = renderFor(o.refinement, x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);

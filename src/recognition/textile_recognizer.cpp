@@ -51,6 +51,9 @@ void RecognizerOptions::validate() const {
   if (mesh_cache_size < 1) bad("mesh_cache_size must be >= 1");
   if (!(grasp.boundary_tolerance_m >= 0) || !std::isfinite(grasp.boundary_tolerance_m))
     bad("grasp.boundary_tolerance_m must be finite and >= 0");
+  if (!(observation.surface_tolerance_m > 0) || !std::isfinite(observation.surface_tolerance_m) ||
+      observation.window_px < 0 || observation.window_px > 32)
+    bad("observation.surface_tolerance_m must be finite and > 0 and observation.window_px in 0..32");
   if (canonicalisation.max_canvas_px < 16) bad("canonicalisation.max_canvas_px must be >= 16");
   if (max_image_pixels < 1) bad("max_image_pixels must be >= 1");
   evidence.validate();

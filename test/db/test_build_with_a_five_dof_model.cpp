@@ -82,7 +82,7 @@ TEST(BuildWithAFiveDofModel, ParticleParameterTextIsUnchanged) {
   const std::string text = DrapeDatabaseBuilder::parametersText(c);
   const std::string expected_start =
       "format: 1\nmodel: particle_kes\nintegrator: semi_implicit\npolicy: error\nlinear_solver: cg\n"
-      "preconditioner: two_level\ncg_warm_start: true\njacobian: definite_fix\nforces: gravity drag shear bending\n"
+      "preconditioner: two_level\ncg_warm_start: false\njacobian: definite_fix\nforces: gravity drag shear bending\n"
       "require_rest: true\nretry_with_smaller_steps: true\nprojection: orthographic\nspacing_m: 0.050000000000000003\n"
       "hold_height_m: 1\nmodel_options.settle_damping_per_s: 4\nsimulation.cg_max_iterations: 400\n";
   EXPECT_EQ(text.substr(0, expected_start.size()), expected_start) << text;

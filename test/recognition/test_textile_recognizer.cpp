@@ -304,6 +304,18 @@ TEST_F(RecognizerTest, HeldOutViewsWithDepth) {
       EXPECT_TRUE(r.depth_used);
       EXPECT_FALSE(r.front_back_ambiguous);
       EXPECT_GE(r.depth_residual_m, 0.0);
+      // With depth, the camera sees part of the textile: some grasp points are observed, none by more
+      // images than there are, and every observed one lies on the measured surface.
+      int observed = 0;
+      for (const GraspPose& g : r.grasp_poses) {
+        observed += g.observation.observed();
+        EXPECT_LE(g.observation.images_observed, g.observation.images_in_mask);
+        EXPECT_LE(g.observation.images_in_mask, 1);
+        if (g.observation.observed()) {
+          EXPECT_LE(g.observation.depth_gap_m, RecognizerOptions().observation.surface_tolerance_m);
+        }
+      }
+      EXPECT_GE(observed, 1);
       if (cd == 0) {
         EXPECT_LE(e.max_3d, poseBound(t));
         within += e.max_3d <= kGraspTolerance;
@@ -329,6 +341,7 @@ TEST_F(RecognizerTest, HeldOutViewsColourOnly) {
       // One silhouette fixes the image-plane positions; front and back may be mirrored (documented and
       // flagged), so only the lateral error is checked.
       EXPECT_TRUE(r.front_back_ambiguous);
+      for (const GraspPose& g : r.grasp_poses) EXPECT_FALSE(g.observation.observed()) << g.name << ": no depth, no check";
       if (cd == 0) {
         EXPECT_LE(e.max_lateral, poseBound(t));
         within += e.max_3d <= kGraspTolerance;

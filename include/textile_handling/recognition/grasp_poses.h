@@ -25,6 +25,7 @@
 #include <Eigen/Geometry>
 
 #include "textile_handling/recognition/camera_geometry.h"
+#include "textile_handling/recognition/grasp_point_observation.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/sim/types.h"
@@ -57,6 +58,8 @@ struct GraspPose {
   Vec3 edge_direction = Vec3::UnitX();  ///< unit, H
   Vec3 position_camera = Vec3::Zero();  ///< camera optical frame [m]
   Mat3 rotation_camera = Mat3::Identity();
+  /// What the images showed of this point (filled by TextileRecognizer; zero counts otherwise).
+  GraspPointObservation observation;
   Vec3 normal() const { return rotation.col(2); }
   Eigen::Quaterniond orientation() const { return Eigen::Quaterniond(rotation); }
   Eigen::Quaterniond orientationCamera() const { return Eigen::Quaterniond(rotation_camera); }

@@ -100,6 +100,8 @@ struct RecognizerOptions {
   /// grasp poses are read (shape_fitting.h).
   ShapeFitOptions shape_fit;
   GraspPoseOptions grasp;
+  /// When a grasp point counts as seen by an image (GraspPose::observation).
+  GraspPointObservationOptions observation;
   /// Stored rest shapes kept in memory (loaded on demand).
   std::size_t mesh_cache_size = 64;
   /// When a result may be a success (floors, lost database entries, unbuilt textiles).
