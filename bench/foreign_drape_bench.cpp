@@ -137,7 +137,7 @@ int main(int argc, char** argv) {
     int failed = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const std::vector<bench::ForeignDrape> drapes = bench::buildForeignDrapes(
-        o.out + "/foreign_drapes.sqlite", variants, so, &failed, [](const std::string& m) { std::cerr << m << "\n"; });
+        o.out + "/foreign_drapes.sqlite", variants, &failed, [](const std::string& m) { std::cerr << m << "\n"; });
     std::cerr << drapes.size() << " held-out drapes (" << failed << " simulations failed) in "
               << secondsSince(t0) << " s\n";
 

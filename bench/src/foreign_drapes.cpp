@@ -92,9 +92,7 @@ std::vector<ForeignDrapeVariant> foreignDrapeVariants(const ForeignDrapeSetOptio
 }
 
 std::vector<ForeignDrape> buildForeignDrapes(const std::string& path, const std::vector<ForeignDrapeVariant>& variants,
-                                             const ForeignDrapeSetOptions& options, int* failed,
-                                             const std::function<void(const std::string&)>& log) {
-  (void)options;
+                                             int* failed, const std::function<void(const std::string&)>& log) {
   db::HangingDrapeDatabase hdb(path);
   std::vector<ForeignDrape> out;
   int failures = 0;

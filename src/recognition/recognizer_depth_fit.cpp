@@ -237,18 +237,21 @@ void addGraspPoses(RecognitionRun& run) {
   try {
     const VecX x = w.reflected ? reflectAcrossView(sp->positions, sp->held, w.reflection_view_deg) : sp->positions;
     const double rot0 = run.rotationFor(w.view_angle_deg, 0);
-    // The images with depth (the first one's hold frame is the common frame of the fit).
+    // Image i sees the shape turned by rotationFor(view, i) about the hold axis, the common frame (the
+    // first image's hold frame H) by rot0: a point p of H is cameraRotation(i) p + hold_i in camera i.
+    const auto cameraRotation = [&](std::size_t i) -> Mat3 {
+      return imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
+    };
+    // The images with depth.
     std::vector<DepthView> views;
     if (o.shape_fit.enabled && !imgs[0].depth_m.empty()) {
       for (std::size_t i = 0; i < n; ++i) {
         if (imgs[i].depth_m.empty()) continue;
-        // Image i sees the shape turned by rotationFor(view, i) about the hold axis, the common frame by
-        // rot0: a point p of the common frame is R_i Rz(rot_i - rot0) p + hold_i in camera i.
         DepthView v;
         v.depth = imgs[i].depth_m;
         v.mask = imgs[i].mask;
         v.intrinsics = imgs[i].g.intrinsics;
-        v.rotation = imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
+        v.rotation = cameraRotation(i);
         v.translation = imgs[i].g.hold_camera;
         views.push_back(v);
         if (!o.shape_fit.fuse_views) break;
@@ -271,7 +274,7 @@ void addGraspPoses(RecognitionRun& run) {
       v.mask = imgs[i].mask;
       v.depth = imgs[i].depth_m;
       v.intrinsics = imgs[i].g.intrinsics;
-      v.rotation = imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
+      v.rotation = cameraRotation(i);
       v.translation = imgs[i].g.hold_camera;
       seen.push_back(v);
     }

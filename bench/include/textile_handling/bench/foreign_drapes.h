@@ -54,7 +54,7 @@ struct ForeignDrape {
 /// Simulates (or resumes) every variant into the database at `path` and returns the finished shapes.
 /// Failed simulations are left out and counted in *failed. Progress through `log` (may be empty).
 std::vector<ForeignDrape> buildForeignDrapes(const std::string& path, const std::vector<ForeignDrapeVariant>& variants,
-                                             const ForeignDrapeSetOptions& options, int* failed,
+                                             int* failed,
                                              const std::function<void(const std::string&)>& log);
 
 struct ForeignViewOptions {
