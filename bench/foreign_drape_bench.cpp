@@ -2,7 +2,8 @@
 // bench/foreign_drapes.h; docs/recognition.md, "Foreign drapes").
 //
 //   foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth]
-//                       [--workers N] [--variants NAME,NAME,...] [--max-time S]
+//                       [--workers N] [--variants NAME,NAME,...] [--max-time S] [--no-localisation]
+//                       [--search-radius M]
 //
 // Builds (or resumes) the held-out drapes into DIR/foreign_drapes.sqlite: N hold points per variant
 // anywhere on the towel (default 6; variants: Choi-Ko; two materials; d = 0.8 cm with self-collision and
@@ -40,12 +41,14 @@ struct Options {
   std::vector<std::string> variants;  ///< empty = all
   std::uint64_t seed = 1;
   bool depth = true;
+  bool localisation = true;       ///< --no-localisation: corners stay where the matched shape puts them
+  double search_radius_m = -1;    ///< --search-radius M: GraspPointLocalisationOptions::search_radius_m (< 0 = default)
 };
 
 int usage(const std::string& problem) {
   std::cerr << "foreign_drape_bench: " << problem
             << "\nusage: foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth] "
-               "[--workers N] [--variants NAME,...] [--max-time S]\n";
+               "[--workers N] [--variants NAME,...] [--max-time S] [--no-localisation] [--search-radius M]\n";
   return 2;
 }
 
@@ -98,6 +101,10 @@ int main(int argc, char** argv) {
       o.depth = false;
       continue;
     }
+    if (a == "--no-localisation") {
+      o.localisation = false;
+      continue;
+    }
     if (i + 1 >= argc) return usage(a + " needs a value");
     const std::string v = argv[++i];
     if (a == "--database") o.database = v;
@@ -107,6 +114,7 @@ int main(int argc, char** argv) {
     else if (a == "--workers") o.workers = std::atoi(v.c_str());
     else if (a == "--seed") o.seed = std::strtoull(v.c_str(), nullptr, 10);
     else if (a == "--max-time") o.max_time_s = std::atof(v.c_str());
+    else if (a == "--search-radius") o.search_radius_m = std::atof(v.c_str());
     else if (a == "--variants") {
       std::stringstream ss(v);
       for (std::string name; std::getline(ss, name, ',');) o.variants.push_back(name);
@@ -143,12 +151,15 @@ int main(int argc, char** argv) {
 
     recognition::RecognizerOptions ro;
     ro.textile_name = "towel";
+    ro.localisation.enabled = o.localisation;
+    if (o.search_radius_m >= 0) ro.localisation.search_radius_m = o.search_radius_m;
     const recognition::TextileRecognizer rec(o.database, ro);
     bench::ForeignViewOptions vo;
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
-    corners_csv << "variant,views,corner,observed,images_observed,images_in_mask,depth_gap_m,error_m\n";
+    corners_csv << "variant,views,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
+                   "label_margin_m,uncertainty_m,safe,error_m\n";
     Summary one, two;
     // Corner errors split by the observation flag, per number of images.
     std::vector<double> seen_err[3], unseen_err[3];
@@ -189,10 +200,13 @@ int main(int argc, char** argv) {
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "\n";
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
-            const auto& ob = s->corner_observation[c];
-            corners_csv << d.variant << "," << n << "," << s->corner_names[c] << "," << ob.observed() << ","
+            const recognition::GraspPose& gp = s->corner_poses[c];
+            const auto& ob = gp.observation;
+            corners_csv << d.variant << "," << n << "," << s->score << "," << s->corner_names[c] << "," << ob.observed() << ","
                         << ob.images_observed << "," << ob.images_in_mask << "," << ob.depth_gap_m << ","
-                        << s->corner_error_m[c] << "\n";
+                        << recognition::toString(gp.evidence) << "," << gp.located_shift_m << ","
+                        << (std::isfinite(gp.label_margin_m) ? gp.label_margin_m : -1) << "," << gp.uncertainty_m << ","
+                        << gp.safe << "," << s->corner_error_m[c] << "\n";
             (ob.observed() ? seen_err[n] : unseen_err[n]).push_back(s->corner_error_m[c]);
           }
           if (s->success && s->lowest_corner_error_m >= 0)

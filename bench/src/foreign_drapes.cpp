@@ -187,7 +187,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
     ForeignScore c = s;
     c.corner_names.clear();
     c.corner_error_m.clear();
-    c.corner_observation.clear();
+    c.corner_poses.clear();
     double sum = 0, best = std::numeric_limits<double>::infinity(), worst = 0, low = -1;
     for (const recognition::GraspPose& p : r.grasp_poses) {
       if (p.kind != "corner") continue;
@@ -197,7 +197,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
       const double e = (p.position_camera - truthAt(truth_q)).norm();
       c.corner_names.push_back(p.name);
       c.corner_error_m.push_back(e);
-      c.corner_observation.push_back(p.observation);
+      c.corner_poses.push_back(p);
       sum += e;
       best = std::min(best, e);
       worst = std::max(worst, e);

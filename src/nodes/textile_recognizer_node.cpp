@@ -39,6 +39,7 @@ auto enumParam(const std::string& name, const std::string& value, Parse parse) {
 // from a core result; images_fused and processing_ms are left to the caller.
 RecognitionResult resultMessage(const recognition::RecognitionResult& res, const std_msgs::Header& header,
                                 const Eigen::Isometry3d& gripper_camera, const std::string& grasp_frame_prefix,
+                                const std::string& safe_grasp_frame_prefix,
                                 std::vector<geometry_msgs::TransformStamped>* frames) {
   RecognitionResult out;
   out.header = header;
@@ -74,6 +75,7 @@ RecognitionResult resultMessage(const recognition::RecognitionResult& res, const
     out.top_k.push_back(rc);
   }
   out.grasp_poses.header = out.header;
+  out.safe_grasp_poses.header = out.header;
   for (const auto& g : res.grasp_poses) {
     Eigen::Isometry3d pose_camera = Eigen::Isometry3d::Identity();
     pose_camera.linear() = g.rotation_camera;
@@ -84,11 +86,21 @@ RecognitionResult resultMessage(const recognition::RecognitionResult& res, const
     out.grasp_observed.push_back(g.observation.observed());
     out.grasp_observed_images.push_back(g.observation.images_observed);
     out.grasp_depth_gap_m.push_back(g.observation.depth_gap_m);
-    out.grasp_poses.poses.push_back(tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix())));
+    out.grasp_evidence.push_back(recognition::toString(g.evidence));
+    out.grasp_uncertainty_m.push_back(g.uncertainty_m);
+    out.grasp_safe.push_back(g.safe);
+    const geometry_msgs::Pose pose = tf2::toMsg(Eigen::Affine3d(pose_gripper.matrix()));
+    out.grasp_poses.poses.push_back(pose);
     geometry_msgs::TransformStamped t = tf2::eigenToTransform(pose_gripper);
     t.header = out.header;
     t.child_frame_id = grasp_frame_prefix + g.name;
     frames->push_back(t);
+    if (g.safe) {  // the safe points again, under their own prefix: a robot can listen to these only
+      out.safe_grasp_poses.poses.push_back(pose);
+      out.safe_grasp_names.push_back(g.name);
+      t.child_frame_id = safe_grasp_frame_prefix + g.name;
+      frames->push_back(t);
+    }
   }
   return out;
 }
@@ -108,8 +120,11 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   pnh.param<std::string>("gripper_frame", gripper_frame_, gripper_frame_);
   pnh.param<std::string>("up_frame", up_frame_, up_frame_);
   pnh.param<std::string>("grasp_frame_prefix", grasp_frame_prefix_, grasp_frame_prefix_);
+  pnh.param<std::string>("safe_grasp_frame_prefix", safe_grasp_frame_prefix_, safe_grasp_frame_prefix_);
   if (db_path.empty() || gripper_frame_.empty() || up_frame_.empty())
     throw std::runtime_error("parameters ~database_path, ~gripper_frame and ~up_frame must not be empty");
+  if (safe_grasp_frame_prefix_ == grasp_frame_prefix_)
+    throw std::runtime_error("parameter ~safe_grasp_frame_prefix must differ from ~grasp_frame_prefix");
   tf_timeout_s_ = finiteParam(pnh, "tf_timeout_s", tf_timeout_s_, 0.0);
   pnh.param("use_depth", use_depth_, use_depth_);
   depth_max_age_s_ = finiteParam(pnh, "depth_max_age_s", depth_max_age_s_, 0.0);
@@ -177,6 +192,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
 
   result_pub_ = pnh.advertise<RecognitionResult>("result", 10);
   poses_pub_ = pnh.advertise<geometry_msgs::PoseArray>("grasp_poses", 10);
+  safe_poses_pub_ = pnh.advertise<geometry_msgs::PoseArray>("safe_grasp_poses", 10);
   image_transport::ImageTransport pit(pnh);
   debug_pub_ = pit.advertise("debug_image", 1);
   std::string changed_topic = "drape_simulator/database_changed";
@@ -431,12 +447,13 @@ void TextileRecognizerNode::process(const Frame& f) {
   out_header.stamp = h.stamp;
   out_header.frame_id = gripper_frame_;
   std::vector<geometry_msgs::TransformStamped> frames;
-  RecognitionResult out = resultMessage(res, out_header, gripper_camera, grasp_frame_prefix_, &frames);
+  RecognitionResult out = resultMessage(res, out_header, gripper_camera, grasp_frame_prefix_, safe_grasp_frame_prefix_, &frames);
   out.images_fused = static_cast<int>(images.size());
   out.processing_ms = msSince(t0);
   tf_broadcaster_.sendTransform(frames);
   result_pub_.publish(out);
   poses_pub_.publish(out.grasp_poses);
+  safe_poses_pub_.publish(out.safe_grasp_poses);
   if (debug_pub_.getNumSubscribers() > 0) {  // lazy: the overlay costs a render
     try {
       const cv::Mat dbg = recognizer_->debugImage(obs, res);

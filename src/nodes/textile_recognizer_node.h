@@ -56,7 +56,7 @@ class TextileRecognizerNode {
   image_transport::ImageTransport it_;
   image_transport::Subscriber image_sub_;
   ros::Subscriber info_sub_, depth_sub_, changed_sub_;
-  ros::Publisher result_pub_, poses_pub_;
+  ros::Publisher result_pub_, poses_pub_, safe_poses_pub_;
   image_transport::Publisher debug_pub_;
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
@@ -65,6 +65,7 @@ class TextileRecognizerNode {
   std::string gripper_frame_ = "gripper";
   std::string up_frame_ = "world";
   std::string grasp_frame_prefix_ = "grasp/";
+  std::string safe_grasp_frame_prefix_ = "safe_grasp/";
   double tf_timeout_s_ = 0.2;
   double depth_max_age_s_ = 0.05;
   double depth_wait_s_ = 0.5;   // wall time the worker waits for a frame's depth image

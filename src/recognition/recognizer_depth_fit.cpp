@@ -225,6 +225,37 @@ void assembleResult(RecognitionRun& run) {
   }
 }
 
+namespace {
+
+// Corners moved to the images' outline corners, then every point's error bound and safe flag.
+void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>& seen, std::vector<GraspPose>* poses) {
+  const RecognizerOptions& o = run.o;
+  std::vector<Vec3> predicted;
+  std::vector<bool> corner, observed;
+  for (const GraspPose& gp : *poses) {
+    predicted.push_back(gp.position);
+    corner.push_back(gp.kind == "corner" || gp.on_outline_vertex);
+    observed.push_back(gp.observation.observed());
+  }
+  const std::vector<GraspPointLocation> located = locateGraspPoints(predicted, corner, observed, seen, o.localisation);
+  for (std::size_t i = 0; i < poses->size(); ++i) {
+    GraspPose& gp = (*poses)[i];
+    const GraspPointLocation& L = located[i];
+    gp.evidence = L.evidence;
+    gp.located_shift_m = L.shift_m;
+    gp.label_margin_m = L.label_margin_m;
+    if (L.evidence == GraspPointEvidence::kOutlineCorner || L.evidence == GraspPointEvidence::kLowestPoint) {
+      gp.position = L.position;
+      gp.position_camera = run.imgs[0].g.holdToCamera(gp.position);
+      gp.observation = observeGraspPoint(gp.position, seen, o.observation);
+    }
+    gp.uncertainty_m = graspPointUncertainty(gp.evidence, gp.located_shift_m, gp.label_margin_m, run.res.score, o.trust);
+    gp.safe = gp.uncertainty_m <= o.trust.safe_bound_m;
+  }
+}
+
+}  // namespace
+
 void addGraspPoses(RecognitionRun& run) {
   const RecognizerOptions& o = run.o;
   const std::vector<PreparedImage>& imgs = run.imgs;
@@ -279,6 +310,7 @@ void addGraspPoses(RecognitionRun& run) {
       seen.push_back(v);
     }
     for (GraspPose& gp : res.grasp_poses) gp.observation = observeGraspPoint(gp.position, seen, o.observation);
+    locateAndTrust(run, seen, &res.grasp_poses);
     res.frame = wli.index.frame;
     res.query_masks = run.canonical(wli.index.frame);
     res.matched_mask = renderFor(o.refinement, x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);

@@ -54,6 +54,8 @@ void RecognizerOptions::validate() const {
   if (!(observation.surface_tolerance_m > 0) || !std::isfinite(observation.surface_tolerance_m) ||
       observation.window_px < 0 || observation.window_px > 32)
     bad("observation.surface_tolerance_m must be finite and > 0 and observation.window_px in 0..32");
+  localisation.validate();
+  trust.validate();
   if (canonicalisation.max_canvas_px < 16) bad("canonicalisation.max_canvas_px must be >= 16");
   if (max_image_pixels < 1) bad("max_image_pixels must be >= 1");
   evidence.validate();

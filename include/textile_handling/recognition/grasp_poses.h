@@ -19,12 +19,14 @@
 // edge that leaves it counter-clockwise; inside: the warp direction), mapped onto the surface.
 #pragma once
 
+#include <limits>
 #include <string>
 #include <vector>
 
 #include <Eigen/Geometry>
 
 #include "textile_handling/recognition/camera_geometry.h"
+#include "textile_handling/recognition/grasp_point_localisation.h"
 #include "textile_handling/recognition/grasp_point_observation.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/sim/textile_geometry.h"
@@ -60,6 +62,16 @@ struct GraspPose {
   Mat3 rotation_camera = Mat3::Identity();
   /// What the images showed of this point (filled by TextileRecognizer; zero counts otherwise).
   GraspPointObservation observation;
+  /// Where `position` came from (filled by TextileRecognizer; kModel otherwise) and how far the data moved
+  /// it from the matched shape's prediction [m] (grasp_point_localisation.h).
+  GraspPointEvidence evidence = GraspPointEvidence::kModel;
+  double located_shift_m = 0;
+  /// GraspPointLocation::label_margin_m (+infinity when not located).
+  double label_margin_m = std::numeric_limits<double>::infinity();
+  /// Position uncertainty [m]: the calibrated error bound of this kind of point (grasp_point_trust.h;
+  /// -1 = not assessed), and whether the point is safe to grasp (uncertainty within the safe bound).
+  double uncertainty_m = -1;
+  bool safe = false;
   Vec3 normal() const { return rotation.col(2); }
   Eigen::Quaterniond orientation() const { return Eigen::Quaterniond(rotation); }
   Eigen::Quaterniond orientationCamera() const { return Eigen::Quaterniond(rotation_camera); }

@@ -30,6 +30,7 @@
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/recognition/camera_geometry.h"
+#include "textile_handling/recognition/grasp_point_trust.h"
 #include "textile_handling/recognition/grasp_poses.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/recognition/recognition_evidence.h"
@@ -102,6 +103,10 @@ struct RecognizerOptions {
   GraspPoseOptions grasp;
   /// When a grasp point counts as seen by an image (GraspPose::observation).
   GraspPointObservationOptions observation;
+  /// Corners moved to the images' outline corners (grasp_point_localisation.h).
+  GraspPointLocalisationOptions localisation;
+  /// Per-point error bounds and the safe flag (grasp_point_trust.h).
+  GraspPointTrustOptions trust;
   /// Stored rest shapes kept in memory (loaded on demand).
   std::size_t mesh_cache_size = 64;
   /// When a result may be a success (floors, lost database entries, unbuilt textiles).

@@ -83,7 +83,7 @@ struct ForeignScore {
   double hold_error_m = -1;      ///< textile frame, nearest symmetric image of the truth
   std::vector<std::string> corner_names;
   std::vector<double> corner_error_m;  ///< per reported corner: camera frame, truth with the same labelling
-  std::vector<recognition::GraspPointObservation> corner_observation;  ///< per reported corner, as reported
+  std::vector<recognition::GraspPose> corner_poses;  ///< per reported corner, as reported (observation, evidence, trust)
   double lowest_corner_error_m = -1;   ///< the corner that hangs lowest in the truth
   double best_corner_error_m = -1;
   double max_corner_error_m = -1;

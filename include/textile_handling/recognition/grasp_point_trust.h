@@ -1,0 +1,52 @@
+// How far a reported grasp point may be from the real one, and whether a robot should grasp it
+// (ROS-free).
+//
+// The uncertainty is an error bound: the distance [m] that points with the same evidence stayed within
+// in `coverage` of the cases on the calibration half of the foreign-drape benchmark (drapes the database
+// did not make: another cloth model, other materials and resolutions, self-collision, tilted starts,
+// holds anywhere; docs/recognition.md, "Per-point trust"). It is a step function of the evidence
+// (grasp_point_localisation.h) and grows with how far the data moved the point from the matched shape
+// (a long move is likelier the wrong outline corner):
+//   u = base(evidence) + shift_gain * located_shift_m     (outline corners, lowest point)
+//       + (shift + label margin)  if the label margin < label_margin_m (another predicted corner is
+//                                 nearly as near: the name may be its neighbour's)
+//   u = base(evidence)                                    (model, surface)
+// and doubles when the result's silhouette score is below `weak_score` (the matched shape explains the
+// image poorly, so its labels are doubtful). A point is safe when u <= safe_bound_m.
+//
+// The defaults were fitted by `foreign_drape_bench --calibrate` on one seed and checked on another; the
+// benchmark prints the fraction of safe points within the safe bound, and its calibration chart the
+// fraction within u against u.
+#pragma once
+
+#include "textile_handling/recognition/grasp_point_localisation.h"
+
+namespace textile_handling {
+namespace recognition {
+
+struct GraspPointTrustOptions {
+  /// Error bound [m] per evidence (grasp_point_localisation.h).
+  double model_m = 0.12;
+  double surface_m = 0.08;
+  double outline_corner_m = 0.025;
+  double lowest_point_m = 0.02;
+  /// Added bound per metre the data moved a located point.
+  double shift_gain = 0.25;
+  /// A located point whose label margin is below this [m] may carry its neighbour's name: its bound
+  /// becomes the distance to that neighbour (shift + margin) plus its base.
+  double label_margin_m = 0.05;
+  /// Results scoring below this silhouette IoU get every bound doubled.
+  double weak_score = 0.75;
+  /// A point is safe to grasp when its bound is at most this [m].
+  double safe_bound_m = 0.03;
+  /// Throws RecognitionError(kInvalidOptions) naming the bad field.
+  void validate() const;
+};
+
+/// The error bound [m] of a point with `evidence`, moved `located_shift_m` by the data, whose label has
+/// margin `label_margin_m` (GraspPointLocation), in a result whose silhouette score is `score`.
+double graspPointUncertainty(GraspPointEvidence evidence, double located_shift_m, double label_margin_m, double score,
+                             const GraspPointTrustOptions& options = {});
+
+}  // namespace recognition
+}  // namespace textile_handling

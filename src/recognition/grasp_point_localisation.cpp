@@ -1,0 +1,197 @@
+#include "textile_handling/recognition/grasp_point_localisation.h"
+
+#include <algorithm>
+#include <cmath>
+#include <tuple>
+
+#include <opencv2/imgproc.hpp>
+
+#include "textile_handling/recognition/recognition_errors.h"
+
+namespace textile_handling {
+namespace recognition {
+
+std::string toString(GraspPointEvidence e) {
+  switch (e) {
+    case GraspPointEvidence::kModel: return "model";
+    case GraspPointEvidence::kSurface: return "surface";
+    case GraspPointEvidence::kOutlineCorner: return "outline_corner";
+    case GraspPointEvidence::kLowestPoint: return "lowest_point";
+  }
+  return "model";
+}
+
+void GraspPointLocalisationOptions::validate() const {
+  auto bad = [](const std::string& what) { throw RecognitionError(RecognitionErrorCode::kInvalidOptions, what); };
+  if (!(search_radius_m >= 0) || !(search_radius_m <= 2.0) || !(lowest_search_radius_m >= 0) || !(lowest_search_radius_m <= 2.0))
+    bad("localisation.search_radius_m and lowest_search_radius_m must be in [0, 2]");
+  if (!(lowest_height_slack_m >= 0) || !std::isfinite(lowest_height_slack_m))
+    bad("localisation.lowest_height_slack_m must be finite and >= 0");
+  if (!(hold_exclusion_m >= 0) || !std::isfinite(hold_exclusion_m)) bad("localisation.hold_exclusion_m must be finite and >= 0");
+  if (!(arm_m > 0) || !(arm_m <= 0.5)) bad("localisation.arm_m must be in (0, 0.5]");
+  if (!(max_corner_angle_deg > 0) || !(max_corner_angle_deg < 180)) bad("localisation.max_corner_angle_deg must be in (0, 180)");
+  if (depth_window_px < 0 || depth_window_px > 32) bad("localisation.depth_window_px must be in 0..32");
+  if (!(agreement_m >= 0) || !std::isfinite(agreement_m)) bad("localisation.agreement_m must be finite and >= 0");
+}
+
+namespace {
+
+bool validView(const GraspPointView& v) {
+  const int w = v.intrinsics.width, h = v.intrinsics.height;
+  return w > 0 && h > 0 && v.mask.type() == CV_8UC1 && v.mask.cols == w && v.mask.rows == h && !v.depth.empty() &&
+         v.depth.type() == CV_32FC1 && v.depth.cols == w && v.depth.rows == h && v.intrinsics.fx > 0 && v.intrinsics.fy > 0;
+}
+
+bool validDepth(float d) { return std::isfinite(d) && d > 0; }
+
+// Median measured depth of the mask pixels within +-r of (u, v); NaN if none.
+double windowDepth(const GraspPointView& v, int u, int row, int r) {
+  std::vector<float> d;
+  for (int y = std::max(0, row - r); y <= std::min(v.mask.rows - 1, row + r); ++y)
+    for (int x = std::max(0, u - r); x <= std::min(v.mask.cols - 1, u + r); ++x)
+      if (v.mask.at<std::uint8_t>(y, x) != 0 && validDepth(v.depth.at<float>(y, x))) d.push_back(v.depth.at<float>(y, x));
+  if (d.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+Vec3 toPosesFrame(const GraspPointView& v, double u, double row, double z) {
+  const Vec3 c((u - v.intrinsics.cx) / v.intrinsics.fx * z, (row - v.intrinsics.cy) / v.intrinsics.fy * z, z);
+  return v.rotation.transpose() * (c - v.translation);
+}
+
+double medianMaskDepth(const GraspPointView& v) {
+  std::vector<float> d;
+  for (int y = 0; y < v.mask.rows; y += 2)
+    for (int x = 0; x < v.mask.cols; x += 2)
+      if (v.mask.at<std::uint8_t>(y, x) != 0 && validDepth(v.depth.at<float>(y, x))) d.push_back(v.depth.at<float>(y, x));
+  if (d.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+}  // namespace
+
+std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const GraspPointLocalisationOptions& o) {
+  std::vector<OutlineCorner> out;
+  if (!validView(view)) return out;
+  const double z_median = medianMaskDepth(view);
+  if (!std::isfinite(z_median)) return out;
+  cv::Mat m;
+  cv::compare(view.mask, 0, m, cv::CMP_NE);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(m, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  if (contours.empty()) return out;
+  const auto largest = std::max_element(contours.begin(), contours.end(), [](const auto& a, const auto& b) {
+    return std::abs(cv::contourArea(a)) < std::abs(cv::contourArea(b));
+  });
+  const std::vector<cv::Point>& c = *largest;
+  const int n = static_cast<int>(c.size());
+  const int k = std::max(2, static_cast<int>(std::lround(o.arm_m * view.intrinsics.fx / z_median)));
+  if (n < 4 * k) return out;
+  // Orientation of the contour: the sign of its area decides which turn is convex.
+  const double orientation = cv::contourArea(c, true) > 0 ? 1.0 : -1.0;
+  std::vector<double> angle(n, 180.0);
+  std::vector<bool> convex(n, false);
+  for (int i = 0; i < n; ++i) {
+    const cv::Point a = c[(i - k + n) % n] - c[i], b = c[(i + k) % n] - c[i];
+    const double na = std::hypot(a.x, a.y), nb = std::hypot(b.x, b.y);
+    if (na < 1e-9 || nb < 1e-9) continue;
+    const double cosang = std::clamp((a.x * b.x + a.y * b.y) / (na * nb), -1.0, 1.0);
+    angle[i] = std::acos(cosang) * 180.0 / M_PI;
+    // Walking c[i-k] -> c[i] -> c[i+k], a convex vertex turns the same way as the contour's orientation.
+    const cv::Point d1 = c[i] - c[(i - k + n) % n], d2 = c[(i + k) % n] - c[i];
+    convex[i] = orientation * (static_cast<double>(d1.x) * d2.y - static_cast<double>(d1.y) * d2.x) > 0;
+  }
+  for (int i = 0; i < n; ++i) {
+    if (!convex[i] || !(angle[i] < o.max_corner_angle_deg)) continue;
+    bool minimum = true;
+    for (int j = -k; j <= k && minimum; ++j) {
+      if (j == 0) continue;
+      const int q = (i + j + n) % n;
+      // Strict on one side so that a flat-bottomed minimum yields one corner.
+      if (angle[q] < angle[i] || (j < 0 && angle[q] <= angle[i])) minimum = false;
+    }
+    if (!minimum) continue;
+    const double z = windowDepth(view, c[i].x, c[i].y, o.depth_window_px);
+    if (!std::isfinite(z)) continue;
+    OutlineCorner oc;
+    oc.u = c[i].x;
+    oc.v = c[i].y;
+    oc.angle_deg = angle[i];
+    oc.position = toPosesFrame(view, c[i].x, c[i].y, z);
+    if (oc.position.norm() < o.hold_exclusion_m) continue;
+    out.push_back(oc);
+  }
+  if (!out.empty()) {
+    auto low = std::min_element(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.position.z() < b.position.z(); });
+    low->lowest = true;
+  }
+  return out;
+}
+
+std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predicted, const std::vector<bool>& is_corner,
+                                                  const std::vector<bool>& observed,
+                                                  const std::vector<GraspPointView>& views,
+                                                  const GraspPointLocalisationOptions& o) {
+  const std::size_t n = predicted.size();
+  if (is_corner.size() != n || observed.size() != n)
+    throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "locateGraspPoints: is_corner and observed need one entry per point");
+  std::vector<GraspPointLocation> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i].position = predicted[i];
+    out[i].evidence = observed[i] ? GraspPointEvidence::kSurface : GraspPointEvidence::kModel;
+  }
+  if (!o.enabled) return out;
+  // Per point, the outline corners assigned to it (one per image).
+  std::vector<std::vector<OutlineCorner>> assigned(n);
+  for (const GraspPointView& v : views) {
+    const std::vector<OutlineCorner> corners = findOutlineCorners(v, o);
+    std::vector<bool> point_used(n, false), corner_used(corners.size(), false);
+    double lowest_predicted = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < n; ++i)
+      if (is_corner[i] && predicted[i].allFinite()) lowest_predicted = std::min(lowest_predicted, predicted[i].z());
+    std::vector<std::tuple<double, std::size_t, std::size_t>> pairs;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!is_corner[i] || !predicted[i].allFinite()) continue;
+      const bool hangs_low = predicted[i].z() <= lowest_predicted + o.lowest_height_slack_m;
+      for (std::size_t j = 0; j < corners.size(); ++j) {
+        const double d = (corners[j].position - predicted[i]).norm();
+        const double radius = corners[j].lowest && hangs_low ? std::max(o.lowest_search_radius_m, o.search_radius_m) : o.search_radius_m;
+        if (d <= radius) pairs.emplace_back(d, i, j);
+      }
+    }
+    std::sort(pairs.begin(), pairs.end());
+    for (const auto& [d, i, j] : pairs) {
+      if (point_used[i] || corner_used[j]) continue;
+      point_used[i] = corner_used[j] = true;
+      assigned[i].push_back(corners[j]);
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (assigned[i].empty()) continue;
+    const auto nearest = std::min_element(assigned[i].begin(), assigned[i].end(), [&](const auto& a, const auto& b) {
+      return (a.position - predicted[i]).norm() < (b.position - predicted[i]).norm();
+    });
+    Vec3 sum = Vec3::Zero();
+    GraspPointLocation& L = out[i];
+    bool lowest = false;
+    for (const OutlineCorner& c : assigned[i]) {
+      if ((c.position - nearest->position).norm() > o.agreement_m) continue;
+      sum += c.position;
+      ++L.images;
+      lowest = lowest || c.lowest;
+      L.corner_angle_deg = std::min(L.corner_angle_deg, c.angle_deg);
+    }
+    L.position = sum / L.images;
+    L.shift_m = (L.position - predicted[i]).norm();
+    for (std::size_t j = 0; j < n; ++j)
+      if (j != i && is_corner[j] && predicted[j].allFinite())
+        L.label_margin_m = std::min(L.label_margin_m, (L.position - predicted[j]).norm() - L.shift_m);
+    L.evidence = lowest ? GraspPointEvidence::kLowestPoint : GraspPointEvidence::kOutlineCorner;
+  }
+  return out;
+}
+
+}  // namespace recognition
+}  // namespace textile_handling

@@ -1,0 +1,147 @@
+// locateGraspPoints / findOutlineCorners (grasp_point_localisation.h) and graspPointUncertainty
+// (grasp_point_trust.h): predicted corners move to the outline corners a view with depth shows, the
+// gripper's apex is ignored, unseen points keep their prediction, close labels are flagged; error bounds
+// order the evidence and grow with the move and a doubtful label.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "textile_handling/recognition/grasp_point_localisation.h"
+#include "textile_handling/recognition/grasp_point_trust.h"
+#include "textile_handling/recognition/recognition_errors.h"
+
+using namespace textile_handling;
+using namespace textile_handling::recognition;
+
+namespace {
+
+// A square towel hanging from one corner, seen face on: a diamond in the plane y = 0 of the poses' frame
+// (x right, z up, hold at the origin), 1.5 m in front of a 640 x 480 camera (camera x = x, y = -z, z = y).
+const Vec3 kLeft(-0.25, 0, -0.25), kRight(0.25, 0, -0.25), kBottom(0, 0, -0.5);
+
+GraspPointView diamondView(bool with_depth = true) {
+  GraspPointView v;
+  v.intrinsics = vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480};
+  v.rotation << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  v.translation = Vec3(0, -0.3, 1.5);
+  std::vector<cv::Point> poly;
+  for (const Vec3& p : {Vec3(0, 0, 0), kRight, kBottom, kLeft}) {
+    const Vec3 c = v.rotation * p + v.translation;
+    poly.emplace_back(static_cast<int>(std::lround(525.0 * c.x() / c.z() + 319.5)),
+                      static_cast<int>(std::lround(525.0 * c.y() / c.z() + 239.5)));
+  }
+  v.mask = cv::Mat::zeros(480, 640, CV_8UC1);
+  cv::fillPoly(v.mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+  if (with_depth) {
+    v.depth = cv::Mat(480, 640, CV_32FC1, cv::Scalar(std::nanf("")));
+    v.depth.setTo(1.5f, v.mask);
+  }
+  return v;
+}
+
+}  // namespace
+
+TEST(GraspPointLocalisation, OutlineCornersOfAHangingDiamondSkipTheGrippersApex) {
+  const std::vector<OutlineCorner> corners = findOutlineCorners(diamondView(), {});
+  ASSERT_EQ(corners.size(), 3u);  // left, right, bottom; the top apex is the hold point
+  int lowest = 0;
+  for (const OutlineCorner& c : corners) {
+    const double d = std::min({(c.position - kLeft).norm(), (c.position - kRight).norm(), (c.position - kBottom).norm()});
+    EXPECT_LT(d, 0.01);
+    EXPECT_NEAR(c.angle_deg, 90.0, 20.0);
+    if (c.lowest) {
+      ++lowest;
+      EXPECT_LT((c.position - kBottom).norm(), 0.01);
+    }
+  }
+  EXPECT_EQ(lowest, 1);
+  // Without depth there is no 3-D outline corner.
+  EXPECT_TRUE(findOutlineCorners(diamondView(false), {}).empty());
+}
+
+TEST(GraspPointLocalisation, PredictedCornersMoveToTheDataAndUnseenPointsStay) {
+  const std::vector<Vec3> predicted = {
+      Vec3(-0.23, 0, -0.27),   // left corner, 2.8 cm off
+      Vec3(0.25, 0.02, -0.23), // right corner, 2.8 cm off
+      Vec3(0.02, 0, -0.42),    // bottom corner, 8.2 cm off (the lowest outline corner may move it 20 cm)
+      Vec3(0, 0.10, -0.25),    // a corner folded behind the cloth: no outline corner near it
+      Vec3(0.01, 0, -0.02),    // a corner next to the gripper: the apex is not a textile corner
+      Vec3(-0.23, 0, -0.27)};  // a grasp point (not a corner) at the left corner's prediction
+  const std::vector<bool> is_corner = {true, true, true, true, true, false};
+  const std::vector<bool> observed = {false, false, false, false, true, true};
+  const std::vector<GraspPointLocation> L = locateGraspPoints(predicted, is_corner, observed, {diamondView()});
+  ASSERT_EQ(L.size(), predicted.size());
+  EXPECT_EQ(L[0].evidence, GraspPointEvidence::kOutlineCorner);
+  EXPECT_LT((L[0].position - kLeft).norm(), 0.01);
+  EXPECT_EQ(L[1].evidence, GraspPointEvidence::kOutlineCorner);
+  EXPECT_LT((L[1].position - kRight).norm(), 0.01);
+  EXPECT_EQ(L[2].evidence, GraspPointEvidence::kLowestPoint);
+  EXPECT_LT((L[2].position - kBottom).norm(), 0.01);
+  EXPECT_NEAR(L[2].shift_m, (L[2].position - predicted[2]).norm(), 1e-12);
+  EXPECT_EQ(L[2].images, 1);
+  EXPECT_GT(L[2].label_margin_m, 0.15);  // the other predicted corners are far from the bottom
+  for (std::size_t i : {3u, 4u, 5u}) EXPECT_EQ(L[i].position, predicted[i]) << i;
+  EXPECT_EQ(L[3].evidence, GraspPointEvidence::kModel);
+  EXPECT_EQ(L[4].evidence, GraspPointEvidence::kSurface);
+  EXPECT_EQ(L[5].evidence, GraspPointEvidence::kSurface);
+  EXPECT_FALSE(std::isfinite(L[3].label_margin_m));
+
+  // Disabled, or a view without depth: every prediction stays.
+  GraspPointLocalisationOptions off;
+  off.enabled = false;
+  for (const auto& located : {locateGraspPoints(predicted, is_corner, observed, {diamondView()}, off),
+                              locateGraspPoints(predicted, is_corner, observed, {diamondView(false)})})
+    for (std::size_t i = 0; i < predicted.size(); ++i) EXPECT_EQ(located[i].position, predicted[i]);
+  EXPECT_THROW(locateGraspPoints(predicted, {true}, observed, {diamondView()}), RecognitionError);
+
+  // Beyond the short radius a side corner stays. The lowest outline corner goes to a corner the shape
+  // hangs low (B, 15.8 cm away), not to a nearer one the shape hangs 11 cm higher (A, 11.7 cm away).
+  const std::vector<GraspPointLocation> far =
+      locateGraspPoints({Vec3(-0.25, 0, -0.19), Vec3(0.1, 0, -0.44), Vec3(0.15, 0, -0.55)}, {true, true, true},
+                        {false, false, false}, {diamondView()});
+  EXPECT_EQ(far[0].evidence, GraspPointEvidence::kModel);
+  EXPECT_EQ(far[1].evidence, GraspPointEvidence::kModel);
+  EXPECT_EQ(far[2].evidence, GraspPointEvidence::kLowestPoint);
+  EXPECT_LT((far[2].position - kBottom).norm(), 0.01);
+}
+
+TEST(GraspPointLocalisation, TwoPredictionsNearOneOutlineCornerGiveASmallLabelMargin) {
+  const std::vector<Vec3> predicted = {Vec3(-0.02, 0, -0.47), Vec3(0.04, 0, -0.46)};
+  const std::vector<GraspPointLocation> L = locateGraspPoints(predicted, {true, true}, {false, false}, {diamondView()});
+  EXPECT_EQ(L[0].evidence, GraspPointEvidence::kLowestPoint);  // the nearer prediction takes it
+  EXPECT_LT(L[0].label_margin_m, 0.03);
+  EXPECT_EQ(L[1].evidence, GraspPointEvidence::kModel);
+  // Its bound then covers the neighbour: not safe.
+  const GraspPointTrustOptions t;
+  EXPECT_GT(graspPointUncertainty(L[0].evidence, L[0].shift_m, L[0].label_margin_m, 0.9, t), t.safe_bound_m);
+}
+
+TEST(GraspPointTrust, BoundsOrderTheEvidenceAndGrowWithDoubt) {
+  const GraspPointTrustOptions t;
+  const double inf = std::numeric_limits<double>::infinity();
+  const double lowest = graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.01, inf, 0.9, t);
+  const double outline = graspPointUncertainty(GraspPointEvidence::kOutlineCorner, 0.01, inf, 0.9, t);
+  const double surface = graspPointUncertainty(GraspPointEvidence::kSurface, 0, inf, 0.9, t);
+  const double model = graspPointUncertainty(GraspPointEvidence::kModel, 0, inf, 0.9, t);
+  EXPECT_LE(lowest, outline);
+  EXPECT_LT(outline, surface);
+  EXPECT_LT(surface, model);
+  EXPECT_LE(lowest, t.safe_bound_m);
+  EXPECT_GT(surface, t.safe_bound_m);
+  // A longer move, a doubtful label, a poor silhouette match: larger bounds.
+  EXPECT_GT(graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.10, inf, 0.9, t), lowest);
+  EXPECT_GT(graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.01, 0.01, 0.9, t), lowest);
+  EXPECT_DOUBLE_EQ(graspPointUncertainty(GraspPointEvidence::kModel, 0, inf, 0.5, t), 2 * model);
+  // Bad options name their field.
+  GraspPointTrustOptions bad;
+  bad.surface_m = std::nan("");
+  EXPECT_THROW(bad.validate(), RecognitionError);
+  bad = {};
+  bad.shift_gain = -1;
+  EXPECT_THROW(bad.validate(), RecognitionError);
+  GraspPointLocalisationOptions lb;
+  lb.max_corner_angle_deg = 180;
+  EXPECT_THROW(lb.validate(), RecognitionError);
+}
