@@ -12,7 +12,9 @@
 // gripper turn of 90 degrees, and recognises every image alone and every pair fused, with the
 // recognizer's defaults against DB. Rows: DIR/foreign_drapes.csv (one per recognition); charts:
 // DIR/foreign_hold_vs_corner.png (hold-point error against lowest-corner error, one view and two);
-// DIR/foreign_corners.csv (one row per reported corner: whether the images saw it, and its error);
+// DIR/foreign_corners.csv (one row per reported corner: observation, evidence, uncertainty, safe flag and
+// error); DIR/foreign_calibration.{csv,png} (corner error against reported uncertainty);
+// DIR/foreign_one_vs_two.png (per drape and azimuth: one image's error against two images');
 // headline figures on stdout. A benchmark, not a test: nothing asserts. Set OMP_WAIT_POLICY=passive.
 // Exit status: 0 done, 2 usage, 4 outputs cannot be written, 5 unexpected error.
 #include <algorithm>
@@ -24,6 +26,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "textile_handling/bench/bench_chart.h"
@@ -54,13 +57,26 @@ int usage(const std::string& problem) {
 
 struct Summary {
   int results = 0, failures = 0, hold_within_5cm = 0, lowest_within_3cm = 0, best_within_3cm = 0, all_within_5cm = 0;
+  int with_safe_corner = 0, safe_corners = 0, safe_within_3cm = 0;
   std::vector<double> hold_errors, corner_errors, ms;
+  /// Per reported corner: (uncertainty, error, evidence) for the calibration.
+  std::vector<std::tuple<double, double, std::string>> calibration;
   void add(const bench::ForeignScore& s) {
     ++results;
     if (!s.success) {
       ++failures;
       return;
     }
+    bool any_safe = false;
+    for (std::size_t c = 0; c < s.corner_poses.size(); ++c) {
+      const recognition::GraspPose& gp = s.corner_poses[c];
+      calibration.emplace_back(gp.uncertainty_m, s.corner_error_m[c], recognition::toString(gp.evidence));
+      if (!gp.safe) continue;
+      any_safe = true;
+      ++safe_corners;
+      if (s.corner_error_m[c] <= 0.03) ++safe_within_3cm;
+    }
+    if (any_safe) ++with_safe_corner;
     ms.push_back(s.processing_ms);
     hold_errors.push_back(s.hold_error_m);
     if (s.hold_error_m <= 0.05) ++hold_within_5cm;
@@ -89,6 +105,40 @@ void printSummary(const std::string& what, const Summary& s) {
               what.c_str(), s.results, s.failures, pct(s.hold_within_5cm, s.results).c_str(), 100 * median(s.hold_errors),
               100 * median(s.corner_errors), pct(s.lowest_within_3cm, s.results).c_str(),
               pct(s.best_within_3cm, s.results).c_str(), pct(s.all_within_5cm, s.results).c_str(), median(s.ms));
+  std::printf("%-10s at least one corner safe in %s of results; %d safe corners, %s within 3 cm\n", what.c_str(),
+              pct(s.with_safe_corner, s.results).c_str(), s.safe_corners, pct(s.safe_within_3cm, s.safe_corners).c_str());
+}
+
+// Calibration of the reported uncertainty: corners binned by it (CSV) and every corner's error against
+// its uncertainty (chart, with the diagonal: points below it lie within their bound).
+void writeCalibration(const std::string& out, const Summary& one, const Summary& two) {
+  std::ofstream csv(out + "/foreign_calibration.csv");
+  csv << "views,uncertainty_from_m,uncertainty_to_m,corners,median_error_m,within_uncertainty,within_3cm\n";
+  const std::vector<double> edges = {0, 0.02, 0.03, 0.05, 0.1, 0.2, 1e9};
+  std::vector<ChartPoint> chart;
+  for (const Summary* s : {&one, &two}) {
+    const int n = s == &one ? 1 : 2;
+    for (std::size_t b = 0; b + 1 < edges.size(); ++b) {
+      std::vector<double> err;
+      int within_u = 0, within_3 = 0;
+      for (const auto& [u, e, ev] : s->calibration) {
+        if (u < edges[b] || u >= edges[b + 1]) continue;
+        err.push_back(e);
+        within_u += e <= u;
+        within_3 += e <= 0.03;
+      }
+      const double k = std::max<std::size_t>(1, err.size());
+      csv << n << "," << edges[b] << "," << (edges[b + 1] > 1e8 ? -1 : edges[b + 1]) << "," << err.size() << ","
+          << median(err) << "," << within_u / k << "," << within_3 / k << "\n";
+    }
+    for (const auto& [u, e, ev] : s->calibration)
+      if (u > 0) chart.push_back({100 * u, std::max(0.05, 100 * e), "", (n == 1 ? "one image, " : "two images, ") + ev});
+  }
+  for (double u = 1.0; u <= 40.0; u *= 1.25) chart.push_back({u, u, "", "error = uncertainty"});
+  std::string err;
+  if (!writeLogLogChart(out + "/foreign_calibration.png", chart, "reported uncertainty [cm]", "corner error [cm]",
+                        "Foreign drapes: corner error against reported uncertainty", &err))
+    std::cerr << "foreign_drape_bench: calibration chart: " << err << "\n";
 }
 
 }  // namespace
@@ -158,12 +208,12 @@ int main(int argc, char** argv) {
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
-    corners_csv << "variant,views,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
-                   "label_margin_m,uncertainty_m,safe,error_m\n";
+    corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
+                   "label_margin_m,located_images,uncertainty_m,safe,error_m\n";
     Summary one, two;
     // Corner errors split by the observation flag, per number of images.
     std::vector<double> seen_err[3], unseen_err[3];
-    std::vector<ChartPoint> chart;
+    std::vector<ChartPoint> chart, paired;  // paired: the same drape and azimuth, one image (x) against two (y)
     std::mt19937_64 rng(o.seed + 99);
     std::uniform_real_distribution<double> az(0.0, 360.0);
     auto recognise = [&](const bench::ForeignDrape& d, const std::vector<bench::ForeignView>& views) {
@@ -202,16 +252,23 @@ int main(int argc, char** argv) {
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
             const recognition::GraspPose& gp = s->corner_poses[c];
             const auto& ob = gp.observation;
-            corners_csv << d.variant << "," << n << "," << s->score << "," << s->corner_names[c] << "," << ob.observed() << ","
+            corners_csv << d.variant << "," << n << "," << s->hold_error_m << "," << s->score << "," << s->corner_names[c] << "," << ob.observed() << ","
                         << ob.images_observed << "," << ob.images_in_mask << "," << ob.depth_gap_m << ","
                         << recognition::toString(gp.evidence) << "," << gp.located_shift_m << ","
-                        << (std::isfinite(gp.label_margin_m) ? gp.label_margin_m : -1) << "," << gp.uncertainty_m << ","
+                        << (std::isfinite(gp.label_margin_m) ? gp.label_margin_m : -1) << "," << gp.located_images << ","
+                        << gp.uncertainty_m << ","
                         << gp.safe << "," << s->corner_error_m[c] << "\n";
             (ob.observed() ? seen_err[n] : unseen_err[n]).push_back(s->corner_error_m[c]);
           }
           if (s->success && s->lowest_corner_error_m >= 0)
             chart.push_back({std::max(1e-3, 100 * s->hold_error_m), std::max(1e-2, 100 * s->lowest_corner_error_m), "",
                              n == 1 ? "one image" : "two images, 90 deg turn"});
+        }
+        if (s1.success && s2.success) {
+          paired.push_back({std::max(0.05, 100 * s1.hold_error_m), std::max(0.05, 100 * s2.hold_error_m), "", "hold point"});
+          if (s1.lowest_corner_error_m >= 0 && s2.lowest_corner_error_m >= 0)
+            paired.push_back({std::max(0.05, 100 * s1.lowest_corner_error_m), std::max(0.05, 100 * s2.lowest_corner_error_m), "",
+                              "lowest corner"});
         }
         std::cerr << d.variant << " hold (" << d.hold.x() << ", " << d.hold.y() << ") az " << a << ": one image "
                   << (s1.success ? std::to_string(100 * s1.hold_error_m) + " cm" : "failed") << ", two "
@@ -230,7 +287,12 @@ int main(int argc, char** argv) {
                   unseen_err[n].size(), 100 * median(unseen_err[n]),
                   pct(within(unseen_err[n]), static_cast<int>(unseen_err[n].size())).c_str());
     }
+    writeCalibration(o.out, one, two);
+    for (double u = 0.1; u <= 40.0; u *= 1.5) paired.push_back({u, u, "", "equal"});
     std::string err;
+    if (!writeLogLogChart(o.out + "/foreign_one_vs_two.png", paired, "one image: error [cm]", "two images: error [cm]",
+                          "Foreign drapes: one image against two (below the diagonal: two are better)", &err))
+      std::cerr << "foreign_drape_bench: chart: " << err << "\n";
     if (!writeLogLogChart(o.out + "/foreign_hold_vs_corner.png", chart, "hold-point error [cm]",
                           "lowest-corner error [cm]", "Foreign drapes: hold point vs lowest corner", &err))
       std::cerr << "foreign_drape_bench: chart: " << err << "\n";

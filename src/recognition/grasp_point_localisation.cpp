@@ -32,6 +32,7 @@ void GraspPointLocalisationOptions::validate() const {
   if (!(max_corner_angle_deg > 0) || !(max_corner_angle_deg < 180)) bad("localisation.max_corner_angle_deg must be in (0, 180)");
   if (depth_window_px < 0 || depth_window_px > 32) bad("localisation.depth_window_px must be in 0..32");
   if (!(agreement_m >= 0) || !std::isfinite(agreement_m)) bad("localisation.agreement_m must be finite and >= 0");
+  if (!std::isfinite(min_move_margin_m)) bad("localisation.min_move_margin_m must be finite");
 }
 
 namespace {
@@ -186,9 +187,15 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
     L.position = sum / L.images;
     L.shift_m = (L.position - predicted[i]).norm();
     for (std::size_t j = 0; j < n; ++j)
-      if (j != i && is_corner[j] && predicted[j].allFinite())
+      if (j != i && predicted[j].allFinite())
         L.label_margin_m = std::min(L.label_margin_m, (L.position - predicted[j]).norm() - L.shift_m);
     L.evidence = lowest ? GraspPointEvidence::kLowestPoint : GraspPointEvidence::kOutlineCorner;
+    if (L.shift_m > o.search_radius_m && L.label_margin_m < o.min_move_margin_m) {  // ambiguous long move: keep the prior
+      const GraspPointEvidence keep = observed[i] ? GraspPointEvidence::kSurface : GraspPointEvidence::kModel;
+      L = GraspPointLocation{};
+      L.position = predicted[i];
+      L.evidence = keep;
+    }
   }
   return out;
 }

@@ -243,6 +243,7 @@ void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>
     const GraspPointLocation& L = located[i];
     gp.evidence = L.evidence;
     gp.located_shift_m = L.shift_m;
+    gp.located_images = L.images;
     gp.label_margin_m = L.label_margin_m;
     if (L.evidence == GraspPointEvidence::kOutlineCorner || L.evidence == GraspPointEvidence::kLowestPoint) {
       gp.position = L.position;
@@ -314,6 +315,9 @@ void addGraspPoses(RecognitionRun& run) {
     res.frame = wli.index.frame;
     res.query_masks = run.canonical(wli.index.frame);
     res.matched_mask = renderFor(o.refinement, x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);
+    run.matched_masks = {res.matched_mask};
+    for (std::size_t i = 1; i < n; ++i)
+      run.matched_masks.push_back(renderFor(o.refinement, x, *sp, w.view_angle_deg + imgs[i].relative_view_deg, imgs[i], wli.index.frame));
   } catch (const RecognitionError& e) {
     // The stored shape or mesh is inconsistent (options were validated): the database is at fault.
     fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
@@ -325,7 +329,12 @@ void addGraspPoses(RecognitionRun& run) {
 void checkResultEvidence(RecognitionRun& run) {
   RecognitionResult& res = run.res;
   res.colour_fraction = run.imgs[0].colour_fraction;
-  res.coverage = silhouetteCoverage(res.query_masks.front(), res.matched_mask, run.o.refinement.max_shift_px);
+  // Every image judges the answer: the mean coverage over the images (a fused winner balances them, so the
+  // first image alone may be covered less while the pair is explained well).
+  double coverage = 0;
+  for (std::size_t i = 0; i < run.matched_masks.size(); ++i)
+    coverage += silhouetteCoverage(res.query_masks[i], run.matched_masks[i], run.o.refinement.max_shift_px);
+  res.coverage = run.matched_masks.empty() ? 0.0 : coverage / run.matched_masks.size();
   checkEvidence(res.score, res.coverage, run.o.evidence);
   res.skipped_views = run.st.skipped.size();
   res.warnings = run.st.result_warnings;

@@ -96,19 +96,24 @@ TEST(GraspPointLocalisation, PredictedCornersMoveToTheDataAndUnseenPointsStay) {
     for (std::size_t i = 0; i < predicted.size(); ++i) EXPECT_EQ(located[i].position, predicted[i]);
   EXPECT_THROW(locateGraspPoints(predicted, {true}, observed, {diamondView()}), RecognitionError);
 
-  // Beyond the short radius a side corner stays. The lowest outline corner goes to a corner the shape
-  // hangs low (B, 15.8 cm away), not to a nearer one the shape hangs 11 cm higher (A, 11.7 cm away).
+  // Beyond the short radius a side corner stays. The lowest outline corner does not go to a corner the
+  // shape hangs 11 cm higher (A, 11.7 cm away), and not to the low one (B, 15.8 cm away) either while A is
+  // nearer: that label would be doubtful. With A out of the way, B takes it.
   const std::vector<GraspPointLocation> far =
       locateGraspPoints({Vec3(-0.25, 0, -0.19), Vec3(0.1, 0, -0.44), Vec3(0.15, 0, -0.55)}, {true, true, true},
                         {false, false, false}, {diamondView()});
   EXPECT_EQ(far[0].evidence, GraspPointEvidence::kModel);
   EXPECT_EQ(far[1].evidence, GraspPointEvidence::kModel);
-  EXPECT_EQ(far[2].evidence, GraspPointEvidence::kLowestPoint);
-  EXPECT_LT((far[2].position - kBottom).norm(), 0.01);
+  EXPECT_EQ(far[2].evidence, GraspPointEvidence::kModel);
+  const std::vector<GraspPointLocation> low =
+      locateGraspPoints({Vec3(0.1, 0, -0.30), Vec3(0.15, 0, -0.55)}, {true, true}, {false, false}, {diamondView()});
+  EXPECT_EQ(low[0].evidence, GraspPointEvidence::kModel);
+  EXPECT_EQ(low[1].evidence, GraspPointEvidence::kLowestPoint);
+  EXPECT_LT((low[1].position - kBottom).norm(), 0.01);
 }
 
 TEST(GraspPointLocalisation, TwoPredictionsNearOneOutlineCornerGiveASmallLabelMargin) {
-  const std::vector<Vec3> predicted = {Vec3(-0.02, 0, -0.47), Vec3(0.04, 0, -0.46)};
+  const std::vector<Vec3> predicted = {Vec3(-0.01, 0, -0.48), Vec3(0.03, 0, -0.47)};
   const std::vector<GraspPointLocation> L = locateGraspPoints(predicted, {true, true}, {false, false}, {diamondView()});
   EXPECT_EQ(L[0].evidence, GraspPointEvidence::kLowestPoint);  // the nearer prediction takes it
   EXPECT_LT(L[0].label_margin_m, 0.03);
@@ -116,6 +121,12 @@ TEST(GraspPointLocalisation, TwoPredictionsNearOneOutlineCornerGiveASmallLabelMa
   // Its bound then covers the neighbour: not safe.
   const GraspPointTrustOptions t;
   EXPECT_GT(graspPointUncertainty(L[0].evidence, L[0].shift_m, L[0].label_margin_m, 0.9, t), t.safe_bound_m);
+  // A long move to an outline corner about as near to another prediction is not made.
+  const std::vector<GraspPointLocation> far =
+      locateGraspPoints({Vec3(-0.06, 0, -0.44), Vec3(0.07, 0, -0.43)}, {true, true}, {true, false}, {diamondView()});
+  EXPECT_EQ(far[0].evidence, GraspPointEvidence::kSurface);
+  EXPECT_EQ(far[0].position, Vec3(-0.06, 0, -0.44));
+  EXPECT_EQ(far[1].evidence, GraspPointEvidence::kModel);
 }
 
 TEST(GraspPointTrust, BoundsOrderTheEvidenceAndGrowWithDoubt) {

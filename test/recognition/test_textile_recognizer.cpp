@@ -124,6 +124,30 @@ PoseErrors poseErrors(const Truth& t, const RecognitionResult& r, const db::Text
   return best;
 }
 
+// The largest error among the poses reported safe (-1: none), under the mirror that poseErrors() uses.
+double maxSafeError(const Truth& t, const RecognitionResult& r, const db::TextileSymmetry& sym, int* safe_count) {
+  std::vector<db::MirrorKind> group = {db::MirrorKind::kIdentity};
+  for (auto m : sym.mirrors()) group.push_back(m);
+  double best_all = 1e9, safe_max = -1;
+  for (db::MirrorKind g : group) {
+    auto map = [&](const Vec2& p) { return g == db::MirrorKind::kIdentity ? p : sym.apply(g, p); };
+    if ((map(t.hold) - r.hold_point).norm() > 1e-3) continue;
+    double all = 0, safe = -1;
+    for (const GraspPose& p : r.grasp_poses) {
+      const double e = (p.position - (t.positions.segment<3>(3 * t.grid.nearestActive(map(p.textile_position))) - t.holdWorld())).norm();
+      all = std::max(all, e);
+      if (p.safe) safe = std::max(safe, e);
+    }
+    if (all < best_all) {
+      best_all = all;
+      safe_max = safe;
+    }
+  }
+  *safe_count = 0;
+  for (const GraspPose& p : r.grasp_poses) *safe_count += p.safe;
+  return safe_max;
+}
+
 double oracleError(const Truth& t, const VecX& db_positions, const ParticleGrid& db_grid, Index db_held) {
   const Vec3 h1 = t.holdWorld(), h2 = db_positions.segment<3>(3 * db_held);
   double best = 1e9;
@@ -289,7 +313,7 @@ TEST_F(RecognizerTest, StoredShapesBetweenViewsAreRecoveredClosely) {
 
 TEST_F(RecognizerTest, HeldOutViewsWithDepth) {
   TextileRecognizer rec(db_path_);
-  int exact = 0, total = 0, within = 0;
+  int exact = 0, total = 0, within = 0, located = 0, safe = 0;
   for (const Truth& t : truths_)
     for (double az : {37.0, 214.0}) {
       const RecognitionResult r = rec.recognize(observe(t, az, 0.0, true, 100 + total));
@@ -320,9 +344,30 @@ TEST_F(RecognizerTest, HeldOutViewsWithDepth) {
         EXPECT_LE(e.max_3d, poseBound(t));
         within += e.max_3d <= kGraspTolerance;
       }
+      // Per-point trust: every point has a bound; a safe point is within the safe bound (3 cm) of the
+      // truth (these shapes come from another resolution than the database's); located points lie on the
+      // measured surface.
+      int safe_here = 0;
+      const double safe_err = maxSafeError(t, r, symmetry_, &safe_here);
+      safe += safe_here;
+      if (cd <= 1 && safe_here > 0) {
+        EXPECT_LE(safe_err, RecognizerOptions().trust.safe_bound_m) << "a point reported safe is off";
+      }
+      for (const GraspPose& g : r.grasp_poses) {
+        EXPECT_GT(g.uncertainty_m, 0.0) << g.name;
+        EXPECT_EQ(g.safe, g.uncertainty_m <= RecognizerOptions().trust.safe_bound_m) << g.name;
+        if (g.evidence == GraspPointEvidence::kLowestPoint || g.evidence == GraspPointEvidence::kOutlineCorner) {
+          ++located;
+          EXPECT_EQ(g.kind, "corner") << g.name;
+          EXPECT_TRUE(g.observation.observed()) << g.name << ": located from the data, so on the measured surface";
+        }
+      }
     }
-  std::printf("depth: %d / %d exact, %d with every grasp pose within 3 cm\n", exact, total, within);
+  std::printf("depth: %d / %d exact, %d with every grasp pose within 3 cm, %d points located from the data, %d safe\n",
+              exact, total, within, located, safe);
   EXPECT_GE(exact, total - 1);
+  EXPECT_GE(located, 1);  // the data placed some corners (else the checks above test nothing)
+  EXPECT_GE(safe, 1);
 }
 
 TEST_F(RecognizerTest, HeldOutViewsColourOnly) {
@@ -341,7 +386,11 @@ TEST_F(RecognizerTest, HeldOutViewsColourOnly) {
       // One silhouette fixes the image-plane positions; front and back may be mirrored (documented and
       // flagged), so only the lateral error is checked.
       EXPECT_TRUE(r.front_back_ambiguous);
-      for (const GraspPose& g : r.grasp_poses) EXPECT_FALSE(g.observation.observed()) << g.name << ": no depth, no check";
+      for (const GraspPose& g : r.grasp_poses) {
+        EXPECT_FALSE(g.observation.observed()) << g.name << ": no depth, no check";
+        EXPECT_EQ(g.evidence, GraspPointEvidence::kModel) << g.name << ": without depth nothing is located";
+        EXPECT_FALSE(g.safe) << g.name;
+      }
       if (cd == 0) {
         EXPECT_LE(e.max_lateral, poseBound(t));
         within += e.max_3d <= kGraspTolerance;

@@ -126,6 +126,13 @@ TEST(ReplayRecognition, HeldOutSceneGivesTheHoldPointAndGraspFrames) {
     EXPECT_EQ(r.textile_name, "towel");
     ASSERT_EQ(r.grasp_names.size(), r.grasp_poses.poses.size());
     EXPECT_GE(r.grasp_names.size(), truth.gripper.size());
+    // Per-point trust: one entry per point; the safe ones again in safe_grasp_poses and under safe_grasp/.
+    ASSERT_EQ(r.grasp_evidence.size(), r.grasp_names.size());
+    ASSERT_EQ(r.grasp_uncertainty_m.size(), r.grasp_names.size());
+    ASSERT_EQ(r.grasp_safe.size(), r.grasp_names.size());
+    ASSERT_EQ(r.safe_grasp_names.size(), r.safe_grasp_poses.poses.size());
+    EXPECT_EQ(r.safe_grasp_names.size(), static_cast<size_t>(std::count(r.grasp_safe.begin(), r.grasp_safe.end(), true)));
+    for (size_t k = 0; k < r.grasp_names.size(); ++k) EXPECT_GT(r.grasp_uncertainty_m[k], 0.0) << r.grasp_names[k];
     // The tf frames the recognizer broadcast (parented to the gripper frame).
     std::vector<Vec3> frame_positions(r.grasp_names.size());
     std::vector<bool> have(r.grasp_names.size(), false);
@@ -145,6 +152,15 @@ TEST(ReplayRecognition, HeldOutSceneGivesTheHoldPointAndGraspFrames) {
       EXPECT_NEAR(q.x, p.x, 1e-9);
       EXPECT_NEAR(q.y, p.y, 1e-9);
       EXPECT_NEAR(q.z, p.z, 1e-9);
+      if (r.grasp_safe[k]) {
+        try {
+          const auto st = buffer.lookupTransform(r.header.frame_id, "safe_grasp/" + r.grasp_names[k], r.header.stamp, ros::Duration(1.0));
+          EXPECT_NEAR(st.transform.translation.x, p.x, 1e-9);
+          EXPECT_NEAR(st.transform.translation.z, p.z, 1e-9);
+        } catch (const tf2::TransformException& e) {
+          ADD_FAILURE() << "no tf frame safe_grasp/" << r.grasp_names[k] << " for a safe point: " << e.what();
+        }
+      }
     }
     // Names are compared under the mirror that maps the true hold point onto the reported one; where
     // several do equally well (a hold point on a symmetry axis leaves "upper" and "lower" open), under the
@@ -172,7 +188,9 @@ TEST(ReplayRecognition, HeldOutSceneGivesTheHoldPointAndGraspFrames) {
         w = std::max(w, err);
         if (err > grasp_tol)
           c.push_back("grasp frame " + r.grasp_names[k] + " (truth " + truth_name + ") is " + std::to_string(err) +
-                      " m from the ground truth");
+                      " m from the ground truth (evidence " + r.grasp_evidence[k] +
+                      ", uncertainty " + std::to_string(r.grasp_uncertainty_m[k]) + " m, safe " +
+                      std::to_string(static_cast<int>(r.grasp_safe[k])) + ")");
       }
       if (w < worst) {
         worst = w;

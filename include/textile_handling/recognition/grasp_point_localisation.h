@@ -56,6 +56,10 @@ struct GraspPointLocalisationOptions {
   /// ... but only to a predicted corner that hangs within this [m] of the lowest predicted corner (the
   /// matched shape agrees that it hangs low; a fold's bottom must not pull a side corner down).
   double lowest_height_slack_m = 0.08;
+  /// A move longer than search_radius_m whose label margin (GraspPointLocation) is below this [m] is not
+  /// made: the outline corner is about as near to another predicted corner, and moving the wrong one
+  /// makes it worse (a towel held at the middle of an edge hangs two corners side by side).
+  double min_move_margin_m = 0.03;
   /// Outline corners nearer than this [m] to the hold point (the poses' frame origin) are the gripper's
   /// apex or cloth folded over it, not a corner it can place better than the shape (a corner this near
   /// the hold is a short, well-predicted reach from it): ignored.
@@ -91,9 +95,10 @@ struct GraspPointLocation {
   double shift_m = 0;            ///< |located - predicted|
   int images = 0;                ///< images whose outline corner was used
   double corner_angle_deg = 180; ///< the sharpest used outline corner's interior angle
-  /// How clearly the label fits: the located position's distance to the second-nearest predicted corner
-  /// minus its distance to this one [m] (small: two corners of the matched shape hang near the outline
-  /// corner and the names may be swapped); +infinity without a second corner or for an unlocated point.
+  /// How clearly the label fits: the located position's distance to the nearest other predicted point
+  /// (corner or named point: an edge midpoint hanging as low as a corner is not one) minus its distance
+  /// to this one [m]. Small or negative: another named point of the matched shape hangs as near the
+  /// outline corner, and the name may be wrong. +infinity without other points or for an unlocated point.
   double label_margin_m = std::numeric_limits<double>::infinity();
 };
 

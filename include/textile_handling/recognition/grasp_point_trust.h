@@ -31,7 +31,7 @@ struct GraspPointTrustOptions {
   double outline_corner_m = 0.025;
   double lowest_point_m = 0.02;
   /// Added bound per metre the data moved a located point.
-  double shift_gain = 0.25;
+  double shift_gain = 0.5;
   /// A located point whose label margin is below this [m] may carry its neighbour's name: its bound
   /// becomes the distance to that neighbour (shift + margin) plus its base.
   double label_margin_m = 0.05;

@@ -17,11 +17,13 @@ namespace recognition {
 struct EvidenceOptions {
   /// Floor of the winner's silhouette IoU (refined if refined; the mean over images when fused).
   double min_score = 0.6;
-  /// Floor of the winner's coverage: min(|Q and M| / |Q|, |Q and M| / |M|) of the first image's
-  /// canonical mask Q and the matched silhouette M at their best shift. A segmented region much larger
-  /// than any stored shape (a dark or uniform frame, the background segmented as textile) covers its
-  /// match but is covered by it only in part.
-  double min_coverage = 0.7;
+  /// Floor of the winner's coverage: min(|Q and M| / |Q|, |Q and M| / |M|) of an image's canonical mask
+  /// Q and the matched silhouette M rendered for it at their best shift, averaged over the images. A
+  /// segmented region much larger than any stored shape (a dark or uniform frame, the background
+  /// segmented as textile) covers its match but is covered by it only in part (measured 0.11-0.22).
+  /// 0.6 rather than 0.7: drapes of another cloth model cover their best match 0.65-0.70 and are real
+  /// textiles; their doubtful labels show in the per-point trust (grasp_point_trust.h) instead.
+  double min_coverage = 0.6;
   /// Ceiling of the share of the image the colour model marks as textile (SegmentationResult::
   /// colour_fraction, every image). A cell camera sees the held textile against its backdrop; a frame
   /// that differs from the backdrop almost everywhere (dark, overexposed, covered lens, another
