@@ -132,7 +132,7 @@ void writeCalibration(const std::string& out, const Summary& one, const Summary&
           << median(err) << "," << within_u / k << "," << within_3 / k << "\n";
     }
     for (const auto& [u, e, ev] : s->calibration)
-      if (u > 0) chart.push_back({100 * u, std::max(0.05, 100 * e), "", (n == 1 ? "one image, " : "two images, ") + ev});
+      if (u > 0) chart.push_back({100 * u, std::max(0.05, 100 * e), "", ev});  // one and two images alike
   }
   for (double u = 1.0; u <= 40.0; u *= 1.25) chart.push_back({u, u, "", "error = uncertainty"});
   std::string err;

@@ -75,10 +75,16 @@ def main():
               "score %.2f, confidence %.2f, %d image(s) fused, %.0f ms"
               % (msg.header.stamp.to_sec(), msg.textile_name, msg.textile_id, msg.hold_x, msg.hold_y,
                  msg.view_angle_deg, msg.score, msg.confidence, msg.images_fused, msg.processing_ms), flush=True)
-        for name, kind, pose in zip(msg.grasp_names, msg.grasp_kinds, msg.grasp_poses.poses):
+        n = len(msg.grasp_names)
+        evidence = list(msg.grasp_evidence) if len(msg.grasp_evidence) == n else ["?"] * n
+        bound = list(msg.grasp_uncertainty_m) if len(msg.grasp_uncertainty_m) == n else [-1.0] * n
+        safe = list(msg.grasp_safe) if len(msg.grasp_safe) == n else [False] * n
+        for name, kind, pose, ev, u, ok in zip(msg.grasp_names, msg.grasp_kinds, msg.grasp_poses.poses, evidence, bound, safe):
             p, q = pose.position, pose.orientation
-            print("    %-22s %-6s in %s: position (%+.3f, %+.3f, %+.3f) m, orientation (x %.3f, y %.3f, z %.3f, w %.3f)"
-                  % (name, kind, msg.header.frame_id, p.x, p.y, p.z, q.x, q.y, q.z, q.w), flush=True)
+            print("    %-22s %-6s in %s: position (%+.3f, %+.3f, %+.3f) m, orientation (x %.3f, y %.3f, z %.3f, w %.3f); "
+                  "from %s, within %.2f m%s"
+                  % (name, kind, msg.header.frame_id, p.x, p.y, p.z, q.x, q.y, q.z, q.w, ev, u, ", SAFE" if ok else ""),
+                  flush=True)
         if truth:
             err = truth_errors(truth, msg)
             if err is not None:

@@ -274,17 +274,22 @@ void addGraspPoses(RecognitionRun& run) {
     const auto cameraRotation = [&](std::size_t i) -> Mat3 {
       return imgs[i].g.rotation_camera_hold * rotationZ(run.rotationFor(w.view_angle_deg, i) - rot0);
     };
+    // Every image as the observation check and the shape fit see it (the poses are in the first image's H).
+    std::vector<GraspPointView> seen;
+    for (std::size_t i = 0; i < n; ++i) {
+      GraspPointView v;
+      v.mask = imgs[i].mask;
+      v.depth = imgs[i].depth_m;
+      v.intrinsics = imgs[i].g.intrinsics;
+      v.rotation = cameraRotation(i);
+      v.translation = imgs[i].g.hold_camera;
+      seen.push_back(v);
+    }
     // The images with depth.
     std::vector<DepthView> views;
     if (o.shape_fit.enabled && !imgs[0].depth_m.empty()) {
-      for (std::size_t i = 0; i < n; ++i) {
-        if (imgs[i].depth_m.empty()) continue;
-        DepthView v;
-        v.depth = imgs[i].depth_m;
-        v.mask = imgs[i].mask;
-        v.intrinsics = imgs[i].g.intrinsics;
-        v.rotation = cameraRotation(i);
-        v.translation = imgs[i].g.hold_camera;
+      for (const GraspPointView& v : seen) {
+        if (v.depth.empty()) continue;
         views.push_back(v);
         if (!o.shape_fit.fuse_views) break;
       }
@@ -299,17 +304,7 @@ void addGraspPoses(RecognitionRun& run) {
     } else {
       res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);
     }
-    // Which points the images show (every image, depth or not; the poses are in the first image's H).
-    std::vector<GraspPointView> seen;
-    for (std::size_t i = 0; i < n; ++i) {
-      GraspPointView v;
-      v.mask = imgs[i].mask;
-      v.depth = imgs[i].depth_m;
-      v.intrinsics = imgs[i].g.intrinsics;
-      v.rotation = cameraRotation(i);
-      v.translation = imgs[i].g.hold_camera;
-      seen.push_back(v);
-    }
+    // Which points the images show (every image, depth or not).
     for (GraspPose& gp : res.grasp_poses) gp.observation = observeGraspPoint(gp.position, seen, o.observation);
     locateAndTrust(run, seen, &res.grasp_poses);
     res.frame = wli.index.frame;

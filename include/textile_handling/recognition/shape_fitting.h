@@ -36,6 +36,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "textile_handling/recognition/grasp_point_observation.h"
 #include "textile_handling/recognition/recognition_errors.h"
 #include "textile_handling/sim/types.h"
 #include "textile_handling/vision/silhouette_renderer.h"
@@ -83,13 +84,7 @@ struct ShapeFitReport {
 
 /// One registered depth view of the shape for fitShapeToDepthViews: camera point = rotation * p + translation
 /// for a point p of the common frame.
-struct DepthView {
-  cv::Mat depth;                    ///< CV_32FC1 [m], NaN or <= 0 = none
-  cv::Mat mask;                     ///< CV_8UC1, != 0 = textile
-  vision::PinholeIntrinsics intrinsics;
-  Mat3 rotation = Mat3::Identity();
-  Vec3 translation = Vec3::Zero();
-};
+using DepthView = GraspPointView;  // depth required here
 
 /// Fits `positions` (3 per vertex, the common frame [m]) to every view at once (see above); otherwise as
 /// fitShapeToDepth, with the correspondence counts summed over the views. Throws RecognitionError for
