@@ -207,7 +207,8 @@ int main(int argc, char** argv) {
     bench::ForeignViewOptions vo;
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
-           "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms\n";
+           "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms,segmentation_ms,query_ms,"
+           "refine_ms\n";
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
                    "label_margin_m,located_images,uncertainty_m,safe,error_m\n";
     Summary one, two;
@@ -248,7 +249,8 @@ int main(int argc, char** argv) {
           csv << d.variant << "," << d.rest_reached << "," << d.hold.x() << "," << d.hold.y() << "," << n << "," << a << "," << s->success << ",\""
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
-              << s->confidence << "," << s->processing_ms << "\n";
+              << s->confidence << "," << s->processing_ms << "," << s->segmentation_ms << "," << s->query_ms << ","
+              << s->refine_ms << "\n";
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
             const recognition::GraspPose& gp = s->corner_poses[c];
             const auto& ob = gp.observation;

@@ -160,6 +160,9 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   s.score = r.score;
   s.confidence = r.confidence;
   s.processing_ms = r.total_ms;
+  s.segmentation_ms = r.segmentation_ms;
+  s.query_ms = r.query_ms;
+  s.refine_ms = r.refine_ms;
   const db::TextileSymmetry sym = db::detectSymmetry(drape.mesh.textile.outline, 1e-6);
   std::vector<db::MirrorKind> group = {db::MirrorKind::kIdentity};
   for (db::MirrorKind m : sym.mirrors()) group.push_back(m);
