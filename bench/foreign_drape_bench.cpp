@@ -208,7 +208,7 @@ int main(int argc, char** argv) {
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms,segmentation_ms,query_ms,"
-           "refine_ms\n";
+           "refine_ms,contradicting_images\n";
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
                    "label_margin_m,located_images,uncertainty_m,safe,error_m\n";
     Summary one, two;
@@ -250,7 +250,7 @@ int main(int argc, char** argv) {
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "," << s->segmentation_ms << "," << s->query_ms << ","
-              << s->refine_ms << "\n";
+              << s->refine_ms << "," << s->contradicting_images << "\n";
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
             const recognition::GraspPose& gp = s->corner_poses[c];
             const auto& ob = gp.observation;

@@ -159,6 +159,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   s.success = true;
   s.score = r.score;
   s.confidence = r.confidence;
+  s.contradicting_images = r.contradicting_images;
   s.processing_ms = r.total_ms;
   s.segmentation_ms = r.segmentation_ms;
   s.query_ms = r.query_ms;

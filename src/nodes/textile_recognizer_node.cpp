@@ -57,6 +57,8 @@ RecognitionResult resultMessage(const recognition::RecognitionResult& res, const
   out.view_angle_deg = res.view_angle_deg;
   out.score = res.score;
   out.coverage = res.coverage;
+  out.image_coverage = res.image_coverage;
+  out.contradicting_images = res.contradicting_images;
   out.skipped_views = static_cast<int>(res.skipped_views);
   out.warnings = res.warnings;
   out.confidence = res.confidence;
@@ -178,6 +180,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   o.evidence.max_colour_fraction = finiteParam(pnh, "evidence/max_colour_fraction", o.evidence.max_colour_fraction, 0.0);
   o.evidence.max_lost_view_fraction =
       finiteParam(pnh, "evidence/max_lost_view_fraction", o.evidence.max_lost_view_fraction, 0.0);
+  o.evidence.contradiction_gap = finiteParam(pnh, "evidence/contradiction_gap", o.evidence.contradiction_gap, 0.0);
   pnh.param("evidence/ignore_unbuilt_textiles", o.evidence.ignore_unbuilt_textiles, o.evidence.ignore_unbuilt_textiles);
   try {
     o.validate();

@@ -20,6 +20,8 @@ void EvidenceOptions::validate() const {
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.max_colour_fraction must be in [0, 1]");
   if (!unit(max_lost_view_fraction))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.max_lost_view_fraction must be in [0, 1]");
+  if (!unit(contradiction_gap))
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.contradiction_gap must be in [0, 1]");
 }
 
 std::string completenessProblem(const TextileCompleteness& c, const EvidenceOptions& o) {

@@ -227,6 +227,30 @@ void assembleResult(RecognitionRun& run) {
 
 namespace {
 
+// Every image judges the answer: its own coverage by the winner, and their mean (a fused winner balances
+// the images, so the first alone may be covered less while the pair is explained well). An image covered
+// much worse than the best one contradicts the others: it halves the confidence and makes the match weak
+// for the per-point trust.
+void measureImageCoverage(RecognitionRun& run, const std::vector<vision::BitMask>& matched) {
+  RecognitionResult& res = run.res;
+  res.image_coverage.clear();
+  double sum = 0;
+  for (std::size_t i = 0; i < matched.size(); ++i) {
+    res.image_coverage.push_back(silhouetteCoverage(res.query_masks[i], matched[i], run.o.refinement.max_shift_px));
+    sum += res.image_coverage.back();
+  }
+  res.coverage = matched.empty() ? 0.0 : sum / matched.size();
+  res.contradicting_images = 0;
+  if (matched.size() < 2) return;
+  const double best = *std::max_element(res.image_coverage.begin(), res.image_coverage.end());
+  for (double c : res.image_coverage) res.contradicting_images += c < best - run.o.evidence.contradiction_gap;
+  for (int k = 0; k < res.contradicting_images; ++k) res.confidence *= 0.5;
+  if (res.contradicting_images > 0)
+    res.warnings.push_back(std::to_string(res.contradicting_images) + " of " + std::to_string(matched.size()) +
+                           " images are explained worse than the best by more than evidence.contradiction_gap: "
+                           "confidence halved, grasp points less trusted");
+}
+
 // Corners moved to the images' outline corners, then every point's error bound and safe flag.
 void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>& seen, std::vector<GraspPose>* poses) {
   const RecognizerOptions& o = run.o;
@@ -250,7 +274,9 @@ void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>
       gp.position_camera = run.imgs[0].g.holdToCamera(gp.position);
       gp.observation = observeGraspPoint(gp.position, seen, o.observation);
     }
-    gp.uncertainty_m = graspPointUncertainty(gp.evidence, gp.located_shift_m, gp.label_margin_m, run.res.score, o.trust);
+    // A contradicting image makes the match weak (score 0 for the trust).
+    const double score = run.res.contradicting_images > 0 ? 0.0 : run.res.score;
+    gp.uncertainty_m = graspPointUncertainty(gp.evidence, gp.located_shift_m, gp.label_margin_m, score, o.trust);
     gp.safe = gp.uncertainty_m <= o.trust.safe_bound_m;
   }
 }
@@ -304,15 +330,18 @@ void addGraspPoses(RecognitionRun& run) {
     } else {
       res.grasp_poses = computeGraspPoses(sp->textile.outline, sp->grid, x, sp->held, rot0, imgs[0].g, o.grasp);
     }
-    // Which points the images show (every image, depth or not).
-    for (GraspPose& gp : res.grasp_poses) gp.observation = observeGraspPoint(gp.position, seen, o.observation);
-    locateAndTrust(run, seen, &res.grasp_poses);
+    // The winner rendered for every image, and how well it explains each.
     res.frame = wli.index.frame;
     res.query_masks = run.canonical(wli.index.frame);
     res.matched_mask = renderFor(o.refinement, x, *sp, w.view_angle_deg, imgs[0], wli.index.frame);
-    run.matched_masks = {res.matched_mask};
+    std::vector<vision::BitMask> matched = {res.matched_mask};
     for (std::size_t i = 1; i < n; ++i)
-      run.matched_masks.push_back(renderFor(o.refinement, x, *sp, w.view_angle_deg + imgs[i].relative_view_deg, imgs[i], wli.index.frame));
+      matched.push_back(renderFor(o.refinement, x, *sp, w.view_angle_deg + imgs[i].relative_view_deg, imgs[i], wli.index.frame));
+    measureImageCoverage(run, matched);
+    // Which points the images show (every image, depth or not), where the data place them, and how far
+    // to trust them.
+    for (GraspPose& gp : res.grasp_poses) gp.observation = observeGraspPoint(gp.position, seen, o.observation);
+    locateAndTrust(run, seen, &res.grasp_poses);
   } catch (const RecognitionError& e) {
     // The stored shape or mesh is inconsistent (options were validated): the database is at fault.
     fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(w.simulation_id) + ": " + e.what());
@@ -324,15 +353,9 @@ void addGraspPoses(RecognitionRun& run) {
 void checkResultEvidence(RecognitionRun& run) {
   RecognitionResult& res = run.res;
   res.colour_fraction = run.imgs[0].colour_fraction;
-  // Every image judges the answer: the mean coverage over the images (a fused winner balances them, so the
-  // first image alone may be covered less while the pair is explained well).
-  double coverage = 0;
-  for (std::size_t i = 0; i < run.matched_masks.size(); ++i)
-    coverage += silhouetteCoverage(res.query_masks[i], run.matched_masks[i], run.o.refinement.max_shift_px);
-  res.coverage = run.matched_masks.empty() ? 0.0 : coverage / run.matched_masks.size();
   checkEvidence(res.score, res.coverage, run.o.evidence);
   res.skipped_views = run.st.skipped.size();
-  res.warnings = run.st.result_warnings;
+  res.warnings.insert(res.warnings.begin(), run.st.result_warnings.begin(), run.st.result_warnings.end());
   res.total_ms = msSince(run.t_start);
 }
 

@@ -85,7 +85,6 @@ struct RecognitionRun {
   std::vector<std::vector<MemberFit>> fits;    // per coarse entry
   std::vector<Candidate> cands;                // best first
   double confidence = 0;
-  std::vector<vision::BitMask> matched_masks;  // the winner rendered for every image (canonical frame)
 
   /// The images' masks in canonical frame `f` (computed once per frame); kSegmentationFailed if a mask
   /// falls outside the window.

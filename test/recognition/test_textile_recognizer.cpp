@@ -478,6 +478,40 @@ TEST_F(RecognizerTest, TwoImagesWithATurnedGripper) {
   EXPECT_GE(exact, total - 1);
 }
 
+// A view that contradicts the others (here: an image of another hold point, as if the textile slipped in
+// the gripper between the images) lowers the confidence and the per-point trust of the fused result; a
+// consistent pair has no contradicting image.
+TEST_F(RecognizerTest, AContradictingImageLowersConfidenceAndTrust) {
+  TextileRecognizer rec(db_path_);
+  const double az = 123.0, turn = 70.0;
+  auto safeCount = [](const RecognitionResult& r) {
+    return std::count_if(r.grasp_poses.begin(), r.grasp_poses.end(), [](const GraspPose& g) { return g.safe; });
+  };
+  int contradicted = 0;
+  for (std::size_t a = 0; a < truths_.size(); ++a) {
+    const Truth& ta = truths_[a];
+    const Truth& tb = truths_[(a + 2) % truths_.size()];
+    const RecognitionResult pair = rec.recognize({observe(ta, az, 0.0, true, 610 + a), observe(ta, az, turn, true, 620 + a)});
+    ASSERT_EQ(pair.image_coverage.size(), 2u);
+    EXPECT_EQ(pair.contradicting_images, 0) << "a consistent pair: coverage " << pair.image_coverage[0] << " / " << pair.image_coverage[1];
+    EXPECT_NEAR(pair.coverage, 0.5 * (pair.image_coverage[0] + pair.image_coverage[1]), 1e-12);
+    try {
+      const RecognitionResult mixed = rec.recognize({observe(ta, az, 0.0, true, 630 + a), observe(tb, az, turn, true, 640 + a)});
+      std::printf("contradicting pair: coverage %.3f / %.3f, %d contradicting, confidence %.3f, %d safe points\n",
+                  mixed.image_coverage[0], mixed.image_coverage[1], mixed.contradicting_images, mixed.confidence,
+                  static_cast<int>(safeCount(mixed)));
+      contradicted += mixed.contradicting_images > 0;
+      EXPECT_EQ(safeCount(mixed), 0) << "no point of a contradicted answer is safe to grasp";
+      if (mixed.contradicting_images > 0) {
+        EXPECT_FALSE(mixed.warnings.empty());
+      }
+    } catch (const RecognitionError& e) {
+      EXPECT_EQ(e.code(), RecognitionErrorCode::kInsufficientEvidence) << e.what();
+    }
+  }
+  EXPECT_GE(contradicted, 3) << "of " << truths_.size() << " contradicting pairs";
+}
+
 TEST_F(RecognizerTest, EncodingsAndDebugImage) {
   TextileRecognizer rec(db_path_);
   const CameraObservation bgr = observe(truths_[2], 77.0, 0.0, false, 9);

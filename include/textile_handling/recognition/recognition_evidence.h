@@ -36,6 +36,11 @@ struct EvidenceOptions {
   /// ruled out, so by default results are kIncompleteDatabase until it has entries; true: such
   /// textiles are left out (reported in every result's warnings) and the others are recognised.
   bool ignore_unbuilt_textiles = false;
+  /// An image of a fused result whose coverage lies more than this below the best image's contradicts
+  /// the others (RecognitionResult::contradicting_images: confidence halved, per-point trust weak).
+  /// Consistent pairs of the same drape differ by 0.005-0.02 (test_textile_recognizer); an image of
+  /// another hold point fused in by 0.15-0.35.
+  double contradiction_gap = 0.1;
 
   /// Throws RecognitionError(kInvalidOptions) naming the bad field.
   void validate() const;

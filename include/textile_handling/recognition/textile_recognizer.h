@@ -200,7 +200,13 @@ struct RecognitionResult {
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0, total_ms = 0;
 
   // ---- evidence ----
-  double coverage = 0;                  ///< see EvidenceOptions::min_coverage
+  double coverage = 0;                  ///< see EvidenceOptions::min_coverage (mean over the images)
+  std::vector<double> image_coverage;   ///< per image: its own coverage by the winner
+  /// Images of a fused result that the winner explains much worse than the best image
+  /// (EvidenceOptions::contradiction_gap): a view that contradicts the others. Each halves the confidence;
+  /// any makes the match weak for the per-point trust (every bound doubled). The answer itself is still
+  /// the fused one: with two images nothing says which of them is wrong.
+  int contradicting_images = 0;
   double colour_fraction = -1;          ///< first image; see EvidenceOptions::max_colour_fraction
   std::size_t skipped_views = 0;        ///< damaged stored views left out at the last load
   /// Load problems that did not stop the recognition: damaged views skipped, unbuilt textiles ignored.

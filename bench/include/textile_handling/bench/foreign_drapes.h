@@ -88,6 +88,7 @@ struct ForeignScore {
   double best_corner_error_m = -1;
   double max_corner_error_m = -1;
   double score = 0, confidence = 0;
+  int contradicting_images = 0;
   double processing_ms = 0;
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0;  ///< the recognizer's stage times (refine includes the depth fit)
 };
