@@ -11,6 +11,10 @@
 namespace textile_handling {
 namespace recognition {
 
+bool locatedFromData(GraspPointEvidence e) {
+  return e == GraspPointEvidence::kOutlineCorner || e == GraspPointEvidence::kLowestPoint;
+}
+
 std::string toString(GraspPointEvidence e) {
   switch (e) {
     case GraspPointEvidence::kModel: return "model";
@@ -45,11 +49,12 @@ bool validView(const GraspPointView& v) {
 
 bool validDepth(float d) { return std::isfinite(d) && d > 0; }
 
-// Median measured depth of the mask pixels within +-r of (u, v); NaN if none.
-double windowDepth(const GraspPointView& v, int u, int row, int r) {
+// Median measured depth of the mask pixels in rows [y0, y1] and columns [x0, x1] (clipped), every
+// `step`-th pixel; NaN if none.
+double medianMaskDepth(const GraspPointView& v, int x0, int y0, int x1, int y1, int step = 1) {
   std::vector<float> d;
-  for (int y = std::max(0, row - r); y <= std::min(v.mask.rows - 1, row + r); ++y)
-    for (int x = std::max(0, u - r); x <= std::min(v.mask.cols - 1, u + r); ++x)
+  for (int y = std::max(0, y0); y <= std::min(v.mask.rows - 1, y1); y += step)
+    for (int x = std::max(0, x0); x <= std::min(v.mask.cols - 1, x1); x += step)
       if (v.mask.at<std::uint8_t>(y, x) != 0 && validDepth(v.depth.at<float>(y, x))) d.push_back(v.depth.at<float>(y, x));
   if (d.empty()) return std::numeric_limits<double>::quiet_NaN();
   std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
@@ -61,22 +66,12 @@ Vec3 toPosesFrame(const GraspPointView& v, double u, double row, double z) {
   return v.rotation.transpose() * (c - v.translation);
 }
 
-double medianMaskDepth(const GraspPointView& v) {
-  std::vector<float> d;
-  for (int y = 0; y < v.mask.rows; y += 2)
-    for (int x = 0; x < v.mask.cols; x += 2)
-      if (v.mask.at<std::uint8_t>(y, x) != 0 && validDepth(v.depth.at<float>(y, x))) d.push_back(v.depth.at<float>(y, x));
-  if (d.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::nth_element(d.begin(), d.begin() + static_cast<long>(d.size() / 2), d.end());
-  return d[d.size() / 2];
-}
-
 }  // namespace
 
 std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const GraspPointLocalisationOptions& o) {
   std::vector<OutlineCorner> out;
   if (!validView(view)) return out;
-  const double z_median = medianMaskDepth(view);
+  const double z_median = medianMaskDepth(view, 0, 0, view.mask.cols - 1, view.mask.rows - 1, 2);
   if (!std::isfinite(z_median)) return out;
   cv::Mat m;
   cv::compare(view.mask, 0, m, cv::CMP_NE);
@@ -114,11 +109,10 @@ std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const 
       if (angle[q] < angle[i] || (j < 0 && angle[q] <= angle[i])) minimum = false;
     }
     if (!minimum) continue;
-    const double z = windowDepth(view, c[i].x, c[i].y, o.depth_window_px);
+    const int r = o.depth_window_px;
+    const double z = medianMaskDepth(view, c[i].x - r, c[i].y - r, c[i].x + r, c[i].y + r);
     if (!std::isfinite(z)) continue;
     OutlineCorner oc;
-    oc.u = c[i].x;
-    oc.v = c[i].y;
     oc.angle_deg = angle[i];
     oc.position = toPosesFrame(view, c[i].x, c[i].y, z);
     if (oc.position.norm() < o.hold_exclusion_m) continue;
@@ -144,14 +138,14 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
     out[i].evidence = observed[i] ? GraspPointEvidence::kSurface : GraspPointEvidence::kModel;
   }
   if (!o.enabled) return out;
+  double lowest_predicted = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < n; ++i)
+    if (is_corner[i] && predicted[i].allFinite()) lowest_predicted = std::min(lowest_predicted, predicted[i].z());
   // Per point, the outline corners assigned to it (one per image).
   std::vector<std::vector<OutlineCorner>> assigned(n);
   for (const GraspPointView& v : views) {
     const std::vector<OutlineCorner> corners = findOutlineCorners(v, o);
     std::vector<bool> point_used(n, false), corner_used(corners.size(), false);
-    double lowest_predicted = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < n; ++i)
-      if (is_corner[i] && predicted[i].allFinite()) lowest_predicted = std::min(lowest_predicted, predicted[i].z());
     std::vector<std::tuple<double, std::size_t, std::size_t>> pairs;
     for (std::size_t i = 0; i < n; ++i) {
       if (!is_corner[i] || !predicted[i].allFinite()) continue;
@@ -174,15 +168,14 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
     const auto nearest = std::min_element(assigned[i].begin(), assigned[i].end(), [&](const auto& a, const auto& b) {
       return (a.position - predicted[i]).norm() < (b.position - predicted[i]).norm();
     });
+    GraspPointLocation L;
     Vec3 sum = Vec3::Zero();
-    GraspPointLocation& L = out[i];
     bool lowest = false;
     for (const OutlineCorner& c : assigned[i]) {
       if ((c.position - nearest->position).norm() > o.agreement_m) continue;
       sum += c.position;
       ++L.images;
       lowest = lowest || c.lowest;
-      L.corner_angle_deg = std::min(L.corner_angle_deg, c.angle_deg);
     }
     L.position = sum / L.images;
     L.shift_m = (L.position - predicted[i]).norm();
@@ -190,12 +183,9 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
       if (j != i && predicted[j].allFinite())
         L.label_margin_m = std::min(L.label_margin_m, (L.position - predicted[j]).norm() - L.shift_m);
     L.evidence = lowest ? GraspPointEvidence::kLowestPoint : GraspPointEvidence::kOutlineCorner;
-    if (L.shift_m > o.search_radius_m && L.label_margin_m < o.min_move_margin_m) {  // ambiguous long move: keep the prior
-      const GraspPointEvidence keep = observed[i] ? GraspPointEvidence::kSurface : GraspPointEvidence::kModel;
-      L = GraspPointLocation{};
-      L.position = predicted[i];
-      L.evidence = keep;
-    }
+    // An ambiguous long move is not made: the point keeps its prior (out[i]).
+    if (L.shift_m > o.search_radius_m && L.label_margin_m < o.min_move_margin_m) continue;
+    out[i] = L;
   }
   return out;
 }

@@ -24,11 +24,14 @@ double graspPointUncertainty(GraspPointEvidence evidence, double located_shift_m
   switch (evidence) {
     case GraspPointEvidence::kModel: u = o.model_m; break;
     case GraspPointEvidence::kSurface: u = o.surface_m; break;
-    case GraspPointEvidence::kOutlineCorner: u = o.outline_corner_m + o.shift_gain * std::max(0.0, located_shift_m); break;
-    case GraspPointEvidence::kLowestPoint: u = o.lowest_point_m + o.shift_gain * std::max(0.0, located_shift_m); break;
+    case GraspPointEvidence::kOutlineCorner: u = o.outline_corner_m; break;
+    case GraspPointEvidence::kLowestPoint: u = o.lowest_point_m; break;
   }
-  const bool located = evidence == GraspPointEvidence::kOutlineCorner || evidence == GraspPointEvidence::kLowestPoint;
-  if (located && !(label_margin_m >= o.label_margin_m)) u += std::max(0.0, located_shift_m) + std::max(0.0, label_margin_m);
+  if (locatedFromData(evidence)) {
+    const double shift = std::max(0.0, located_shift_m);
+    u += o.shift_gain * shift;
+    if (!(label_margin_m >= o.label_margin_m)) u += shift + std::max(0.0, label_margin_m);
+  }
   if (!(score >= o.weak_score)) u *= 2;
   return u;
 }

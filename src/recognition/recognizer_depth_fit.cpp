@@ -269,7 +269,7 @@ void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>
     gp.located_shift_m = L.shift_m;
     gp.located_images = L.images;
     gp.label_margin_m = L.label_margin_m;
-    if (L.evidence == GraspPointEvidence::kOutlineCorner || L.evidence == GraspPointEvidence::kLowestPoint) {
+    if (locatedFromData(L.evidence)) {
       gp.position = L.position;
       gp.position_camera = run.imgs[0].g.holdToCamera(gp.position);
       gp.observation = observeGraspPoint(gp.position, seen, o.observation);

@@ -163,6 +163,25 @@ double oracleError(const Truth& t, const VecX& db_positions, const ParticleGrid&
   return best;
 }
 
+// Every finished simulation of the small towel in `db` as a truth (oracle not set).
+std::vector<Truth> loadTruths(const db::HangingDrapeDatabase& db) {
+  std::vector<Truth> out;
+  const auto t = db.findTextile("small_towel");
+  if (!t) return out;
+  for (const auto& s : db.simulations(t->id, db::SimulationStatus::kDone)) {
+    const db::StoredDrapeMesh m = db::loadDrapeMesh(db, s.id);
+    Truth tr;
+    tr.hold = s.hold;
+    tr.positions = m.positions;
+    tr.triangles = m.triangles;
+    std::string err;
+    tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
+    tr.held = m.held_particle;
+    out.push_back(tr);
+  }
+  return out;
+}
+
 class RecognizerTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -192,17 +211,10 @@ class RecognizerTest : public ::testing::Test {
     const auto dbt = db.findTextile("small_towel");
     ASSERT_TRUE(dbt.has_value());
     const auto db_sims = db.simulations(dbt->id, db::SimulationStatus::kDone);
-    for (const auto& s : hdb.simulations(t->id, db::SimulationStatus::kDone)) {
-      const db::StoredDrapeMesh m = db::loadDrapeMesh(hdb, s.id);
-      Truth tr;
-      tr.hold = s.hold;
-      tr.positions = m.positions;
-      tr.triangles = m.triangles;
+    for (Truth tr : loadTruths(hdb)) {
       std::string err;
-      tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
-      tr.held = m.held_particle;
       for (const auto& d : db_sims)
-        if ((d.hold - s.hold).norm() < 1e-6) {
+        if ((d.hold - tr.hold).norm() < 1e-6) {
           const db::StoredDrapeMesh dm = db::loadDrapeMesh(db, d.id);
           tr.oracle_m = oracleError(tr, dm.positions, ParticleGrid::rasterize(dm.textile.outline, d.spacing, &err),
                                     dm.held_particle);
@@ -220,19 +232,7 @@ class RecognizerTest : public ::testing::Test {
       db::HangingDrapeDatabase cdb(choi_path_);
       db::DrapeDatabaseBuilder cb(cdb, c);
       ASSERT_EQ(cb.build().failed_now, 0);
-      const auto ct = cdb.findTextile("small_towel");
-      ASSERT_TRUE(ct.has_value());
-      for (const auto& s : cdb.simulations(ct->id, db::SimulationStatus::kDone)) {
-        const db::StoredDrapeMesh m = db::loadDrapeMesh(cdb, s.id);
-        Truth tr;
-        tr.hold = s.hold;
-        tr.positions = m.positions;
-        tr.triangles = m.triangles;
-        std::string err;
-        tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
-        tr.held = m.held_particle;
-        choi_truths_.push_back(tr);
-      }
+      choi_truths_ = loadTruths(cdb);
     }
     ASSERT_EQ(choi_truths_.size(), 2u);
   }
@@ -385,7 +385,7 @@ TEST_F(RecognizerTest, HeldOutViewsWithDepth) {
       for (const GraspPose& g : r.grasp_poses) {
         EXPECT_GT(g.uncertainty_m, 0.0) << g.name;
         EXPECT_EQ(g.safe, g.uncertainty_m <= RecognizerOptions().trust.safe_bound_m) << g.name;
-        if (g.evidence == GraspPointEvidence::kLowestPoint || g.evidence == GraspPointEvidence::kOutlineCorner) {
+        if (locatedFromData(g.evidence)) {
           ++located;
           EXPECT_EQ(g.kind, "corner") << g.name;
           EXPECT_TRUE(g.observation.observed()) << g.name << ": located from the data, so on the measured surface";
@@ -425,7 +425,7 @@ TEST_F(RecognizerTest, SafePointsHoldOnAnotherClothModel) {
         const double safe_err = maxSafeError(t, r, symmetry_, &safe_here);
         safe += safe_here;
         for (const GraspPose& g : r.grasp_poses)
-          located += g.evidence == GraspPointEvidence::kLowestPoint || g.evidence == GraspPointEvidence::kOutlineCorner;
+          located += locatedFromData(g.evidence);
         if (safe_here > 0) {
           EXPECT_LE(cd, 1) << "safe points on a wrong hold point";
           EXPECT_LE(safe_err, RecognizerOptions().trust.safe_bound_m) << "a point reported safe is off";

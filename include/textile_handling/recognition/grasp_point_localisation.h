@@ -45,6 +45,8 @@ enum class GraspPointEvidence {
 };
 /// "model", "surface", "outline_corner", "lowest_point".
 std::string toString(GraspPointEvidence e);
+/// True for the evidence kinds that placed the point from the images (outline corner, lowest point).
+bool locatedFromData(GraspPointEvidence e);
 
 struct GraspPointLocalisationOptions {
   bool enabled = true;
@@ -80,7 +82,6 @@ struct GraspPointLocalisationOptions {
 struct OutlineCorner {
   Vec3 position = Vec3::Zero();
   double angle_deg = 180;   ///< interior angle of the turn
-  int u = 0, v = 0;         ///< pixel
   bool lowest = false;      ///< the lowest outline corner of its image
 };
 
@@ -94,7 +95,6 @@ struct GraspPointLocation {
   Vec3 position = Vec3::Zero();  ///< the located position (= the prediction for kModel / kSurface)
   double shift_m = 0;            ///< |located - predicted|
   int images = 0;                ///< images whose outline corner was used
-  double corner_angle_deg = 180; ///< the sharpest used outline corner's interior angle
   /// How clearly the label fits: the located position's distance to the nearest other predicted point
   /// (corner or named point: an edge midpoint hanging as low as a corner is not one) minus its distance
   /// to this one [m]. Small or negative: another named point of the matched shape hangs as near the
