@@ -13,7 +13,7 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "textile_handling/bench/material_variation.h"
+#include "textile_handling/sim/material.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
@@ -167,7 +167,7 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
     v.name = "material";
     v.config = base;
     v.config.textile.name = "towel_perturbed_material";
-    v.config.material = bench::scaledMaterial(base.material, 1.3, 0.8, 1.1, "cotton_perturbed");
+    v.config.material = scaledMaterial(base.material, 1.3, 0.8, 1.1, "cotton_perturbed");
     v.description = "cotton with bending x1.3, shear x0.8, areal density x1.1, d = " + fmt(cfg.spacing * 100, 1) + " cm";
     variants.push_back(v);
   }

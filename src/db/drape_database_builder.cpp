@@ -160,12 +160,35 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   if (c.start_tilt_deg != 0)
     t += "start_tilt_deg: " + internal::fmt17(c.start_tilt_deg) + "\nstart_tilt_axis_deg: " +
          internal::fmt17(c.start_tilt_axis_deg) + "\n";
+  if (c.start_heap.folds > 0)
+    t += "start_heap: folds " + std::to_string(c.start_heap.folds) + " seed " + std::to_string(c.start_heap.seed) +
+         " lift_deg " + internal::fmt17(c.start_heap.lift_deg) + "\n";
+  if (!c.material_variation.identity())
+    t += "material_variation: bending " + internal::fmt17(c.material_variation.bending) + " shear " +
+         internal::fmt17(c.material_variation.shear) + " density " + internal::fmt17(c.material_variation.density) + "\n";
+  if (!c.member.empty()) t += "member: " + c.member + "\n";
   // Only for the quasi-static method (dynamic builds keep their former texts); it never applies with
   // self-collision (rest_shape_search.h), so those builds are dynamic and keep theirs too.
   if (c.rest_shape.method == RestShapeMethod::kQuasiStatic && !c.self_collision) t += c.rest_shape.text() + "\n";
   if (bracket_corner >= 0) t += "hold_bracket: " + std::to_string(bracket_corner) + "\n";
   return t;
 }
+
+namespace {
+
+// The heap seed of one hold point: the build's seed mixed with the hold point in whole micrometres
+// (splitmix64 finaliser), so hold points get different folds and a rebuild gets the same ones.
+std::uint64_t heapSeed(std::uint64_t seed, const Vec2& hold) {
+  auto mix = [](std::uint64_t z) {
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    return z ^ (z >> 31);
+  };
+  const auto um = [](Real v) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::llround(v * 1e6))); };
+  return mix(seed ^ mix(um(hold.x()) ^ mix(um(hold.y()) + 0x9e3779b97f4a7c15ULL)));
+}
+
+}  // namespace
 
 DrapeSceneSpec DrapeDatabaseBuilder::sceneSpec(const DrapeBuildConfig& c, const Vec2& hold) {
   DrapeSceneSpec s;
@@ -182,6 +205,11 @@ DrapeSceneSpec DrapeDatabaseBuilder::sceneSpec(const DrapeBuildConfig& c, const 
   s.self_collision = c.self_collision;
   s.start_tilt_deg = c.start_tilt_deg;
   s.start_tilt_axis_deg = c.start_tilt_axis_deg;
+  s.start_heap = c.start_heap;
+  s.start_heap.seed = heapSeed(c.start_heap.seed, hold);
+  if (!c.material_variation.identity())
+    s.material = scaledMaterial(c.material, c.material_variation.bending, c.material_variation.shear,
+                                c.material_variation.density, c.material.name + "_varied");
   return s;
 }
 
@@ -206,6 +234,13 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
   if (c.textile.name.empty()) throw InvalidInputError("build: textile has no name");
   if (!validateTextileOutline(c.textile, &err)) throw InvalidInputError("build: textile '" + c.textile.name + "': " + err);
   if (!c.material.validate(&err)) throw InvalidInputError("build: material: " + err);
+  for (const auto& [name, k] : {std::pair<const char*, Real>{"bending", c.material_variation.bending},
+                                {"shear", c.material_variation.shear}, {"density", c.material_variation.density}})
+    if (!(std::isfinite(k) && k > 0))
+      throw InvalidInputError(std::string("build: material_variation.") + name + " must be finite and > 0, got " +
+                              internal::fmt17(k));
+  for (char ch : c.member)
+    if (ch == '\n' || ch == '\r') throw InvalidInputError("build: member name must be one line");
   try {
     ClothModelRegistry::instance().validate(c.model);
   } catch (const ClothModelError& e) {

@@ -71,6 +71,11 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   if (!(std::abs(spec.start_tilt_deg) <= 90) || !std::isfinite(spec.start_tilt_axis_deg))
     throw SceneError("start: tilt_deg must be in [-90, 90] and tilt_axis_deg finite, got " +
                      std::to_string(spec.start_tilt_deg) + " and " + std::to_string(spec.start_tilt_axis_deg));
+  if (spec.start_heap.folds < 0 || spec.start_heap.folds > kMaxHeapFolds)
+    throw SceneError("start: heap_folds must be in [0, " + std::to_string(kMaxHeapFolds) + "], got " +
+                     std::to_string(spec.start_heap.folds));
+  if (spec.start_heap.folds > 0 && spec.hold.empty())
+    throw SceneError("start: a heap start needs a hold point (it is lifted by it)");
   if (spec.lift_times.size() != spec.lift_offsets.size())
     throw SceneError("lift: times and offsets differ in length");
   for (size_t k = 0; k < spec.lift_times.size(); ++k) {
@@ -108,6 +113,15 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   for (Index r = 0; r < n; ++r) {
     const Vec2 q = scene.grid.activePosition(r);
     positions.segment<3>(3 * r) = Vec3(q.x(), q.y(), 0) + scene.textile_to_world;
+  }
+  if (spec.start_heap.folds > 0) {
+    const Index p = scene.grid.nearestActive(resolveHold(spec.textile, spec.hold.front()));
+    try {
+      positions = heapStartPositions(scene.grid, p, spec.start_heap, std::max<Real>(spec.spacing, 0.03));
+    } catch (const std::invalid_argument& e) {
+      throw SceneError(e.what());
+    }
+    for (Index r = 0; r < n; ++r) positions.segment<3>(3 * r) += scene.textile_to_world;
   }
   if (spec.start_tilt_deg != 0) {
     const Real a = spec.start_tilt_axis_deg * kPi / 180;
@@ -587,7 +601,14 @@ void parseSceneRoot(const YAML::Node& root, const std::string& base_dir, DrapeSc
   if (const YAML::Node ob = root["obstacles"]) parseObstacles(ob, s.obstacles);
   if (const YAML::Node st = root["start"]) {
     if (!st.IsMap()) fail("'start' must be a map");
-    checkKeys(st, "start", {"tilt_deg", "tilt_axis_deg"});
+    checkKeys(st, "start", {"tilt_deg", "tilt_axis_deg", "heap_folds", "heap_seed", "heap_lift_deg"});
+    if (st["heap_folds"]) s.start_heap.folds = getInt(st["heap_folds"], "start.heap_folds");
+    if (st["heap_seed"]) {
+      const int seed = getInt(st["heap_seed"], "start.heap_seed");
+      if (seed < 0) fail("start.heap_seed must be >= 0, got " + std::to_string(seed));
+      s.start_heap.seed = static_cast<std::uint64_t>(seed);
+    }
+    if (st["heap_lift_deg"]) s.start_heap.lift_deg = getReal(st["heap_lift_deg"], "start.heap_lift_deg");
     if (st["tilt_deg"]) s.start_tilt_deg = getReal(st["tilt_deg"], "start.tilt_deg");
     if (st["tilt_axis_deg"]) s.start_tilt_axis_deg = getReal(st["tilt_axis_deg"], "start.tilt_axis_deg");
   }

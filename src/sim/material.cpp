@@ -13,6 +13,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 namespace textile_handling {
@@ -295,6 +296,34 @@ Material Material::linearElastic(std::string name, Real areal_density, Real shea
   const MaterialCurve bend = MaterialCurve::linear(100.0 * bending_rigidity_Nm / kGfCmPerCmToN);
   m.shear_warp = m.shear_weft = shear;
   m.bend_warp = m.bend_weft = bend;
+  return m;
+}
+
+MaterialCurve scaledCurve(const MaterialCurve& c, Real k) {
+  if (c.kind() == MaterialCurve::Kind::kTable) {
+    std::vector<Real> y = c.tableY();
+    for (Real& v : y) v *= k;
+    return MaterialCurve::table(c.tableX(), y);
+  }
+  std::vector<std::vector<Real>> coef = c.coefficients();
+  for (auto& piece : coef)
+    for (Real& v : piece) v *= k;
+  return MaterialCurve::polynomial(c.breakpoints(), coef);
+}
+
+Material scaledMaterial(const Material& base, Real bending, Real shear, Real density, const std::string& name) {
+  const std::pair<const char*, Real> factors[] = {{"bending", bending}, {"shear", shear}, {"density", density}};
+  for (const auto& [what, k] : factors)
+    if (!(std::isfinite(k) && k > 0))
+      throw std::invalid_argument(std::string("material scale factor '") + what + "' must be finite and > 0, got " +
+                                  std::to_string(k));
+  Material m = base;
+  m.name = name;
+  m.bend_warp = scaledCurve(base.bend_warp, bending);
+  m.bend_weft = scaledCurve(base.bend_weft, bending);
+  m.shear_warp = scaledCurve(base.shear_warp, shear);
+  m.shear_weft = scaledCurve(base.shear_weft, shear);
+  m.areal_density = base.areal_density * density;
   return m;
 }
 

@@ -33,6 +33,7 @@
 
 #include "build_progress_printer.h"
 #include "textile_handling/bench/thesis_benchmark.h"
+#include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_evaluation.h"
@@ -80,7 +81,7 @@ const char* kUsage =
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
-    "         [--bracket] [--self-collision] [--memory-budget-mb M]\n"
+    "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
@@ -208,12 +209,14 @@ std::string fixed(double v, int p) {
 
 // ---- build ------------------------------------------------------------------------------------
 
+int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r);
+
 int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
-               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing"});
+               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members"});
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -318,11 +321,35 @@ int cmdBuild(const Args& a) {
       throw UsageError("--coarse-spacing must be in [0, 1] m (0 = no coarse level)");
   }
 
+  std::vector<DrapeMemberSpec> members;
+  try {
+    members = drapeMembersByName(a.get("--members", "base"));
+  } catch (const InvalidInputError& e) {
+    throw UsageError(std::string("--members: ") + e.what());
+  }
+
   tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
   if (!a.has("--quiet")) progress.attach(c);
   HangingDrapeDatabase db(a.require("--db"));
-  DrapeDatabaseBuilder builder(db, c);
-  const DrapeBuildReport r = builder.build();
+  int status = kExitOk;
+  for (const DrapeMemberSpec& m : members) {
+    if (members.size() > 1 || m.name != "base") std::cout << "member " << m.name << ": " << m.description << "\n";
+    const DrapeBuildConfig mc = memberBuildConfig(c, m);
+    DrapeDatabaseBuilder builder(db, mc);
+    if (printBuildReport(db, mc, builder.build()) != kExitOk) status = kExitFailedSims;
+  }
+  if (members.size() > 1) {
+    std::cout << "finished rest shapes per member:";
+    const auto t = db.findTextile(c.textile.name);
+    if (t)
+      for (const auto& [name, count] : storedMembers(db, t->id)) std::cout << " " << name << " " << count;
+    std::cout << "\n";
+  }
+  return status;
+}
+
+// The summary of one build (one member) on stdout; kExitFailedSims if rows of these settings failed.
+int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r) {
   std::cout << "textile '" << c.textile.name << "' (id " << r.textile_id << "), symmetry " << r.symmetry
             << (r.symmetric_grid ? "" : " (grid not symmetric: every hold point simulated)") << "\n"
             << "hold points: " << r.planned << " (" << r.to_simulate << " simulated, " << r.planned - r.to_simulate

@@ -57,6 +57,15 @@ struct DrapeBuildProgress {
   double eta_s = -1;
 };
 
+/// Scale factors of a build's material for every simulation (a database member's material variation,
+/// scaledMaterial() in material.h); the textile keeps its stored material.
+struct MaterialVariation {
+  Real bending = 1;  ///< both bending curves times this
+  Real shear = 1;    ///< both shear curves times this
+  Real density = 1;  ///< areal density times this
+  bool identity() const { return bending == 1 && shear == 1 && density == 1; }
+};
+
 /// Everything a build needs. The simulation and view settings are stored with every simulation row
 /// (as canonical text, DrapeDatabaseBuilder::parametersText), so a rebuild with other settings plans
 /// new rows instead of mixing results.
@@ -96,6 +105,15 @@ struct DrapeBuildConfig {
   /// docs/collision.md) in every simulation. Off by default: about 1.7 times the simulation cost; without
   /// it a rest shape can pass through itself (docs/database.md). Written into the parameter text only when on.
   bool self_collision = false;
+  /// Picked-from-a-heap start (heap_start.h) of every simulation, before the tilt. The seed is mixed
+  /// with the hold point, so every hold point gets its own folds. Written into the parameter text only
+  /// when folds > 0.
+  HeapStart start_heap;
+  /// Material variation of every simulation (written into the parameter text unless the identity).
+  MaterialVariation material_variation;
+  /// Name of the database member this build makes (drape_build_members.h): written into the parameter
+  /// text when non-empty, so every row says how it was made.
+  std::string member;
   /// How a rest shape is found (rest_shape_search.h): kDynamic (the default) runs the simulation to
   /// rest; kQuasiStatic settles on a 2 cm grid, finishes the equilibrium there with Newton solves and
   /// settles the prolonged shape on the build's grid (falling back to kDynamic if a stage fails).

@@ -11,6 +11,7 @@
 #include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/heap_start.h"
 #include "textile_handling/sim/material.h"
 #include "textile_handling/sim/position_view_pass.h"
 #include "textile_handling/sim/textile_geometry.h"
@@ -48,6 +49,10 @@ struct DrapeSceneSpec {
   /// thesis's flat horizontal sheet. Another start can lead to another equilibrium (docs/simulation.md).
   Real start_tilt_deg = 0;
   Real start_tilt_axis_deg = 0;
+  /// Picked from a heap (scene keys start: {heap_folds, heap_seed, heap_lift_deg}): the sheet folded
+  /// heap_folds times along random lines and lifted by the held point (heap_start.h), layers
+  /// max(d, 3 cm) apart (creases of radius 1.5 cm or more: a heap is loose); applied before the tilt. folds = 0: no heap start.
+  HeapStart start_heap;
   std::vector<Real> lift_times;                ///< waypoints of the holder offset [s]
   std::vector<Vec3> lift_offsets;              ///< [m]
   /// Cloth model and its options (scene key model:; the names and keys of ClothModelRegistry).

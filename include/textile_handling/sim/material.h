@@ -185,6 +185,14 @@ struct Material {
                                 Real bending_rigidity_Nm, Real tension_stiffness);
 };
 
+// `curve` with every value (table entries or polynomial coefficients) multiplied by `factor`.
+MaterialCurve scaledCurve(const MaterialCurve& curve, Real factor);
+
+// `base` with both bending curves times `bending`, both shear curves times `shear` and the areal
+// density times `density`, named `name` (material variation of database members and held-out
+// benchmark drapes). Throws std::invalid_argument naming the factor if one is not finite and > 0.
+Material scaledMaterial(const Material& base, Real bending, Real shear, Real density, const std::string& name);
+
 // Exact equality of every field (curves compared with MaterialCurve::operator==).
 bool operator==(const Material& a, const Material& b);
 inline bool operator!=(const Material& a, const Material& b) { return !(a == b); }
