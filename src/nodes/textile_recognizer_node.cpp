@@ -59,6 +59,7 @@ RecognitionResult resultMessage(const recognition::RecognitionResult& res, const
   out.coverage = res.coverage;
   out.image_coverage = res.image_coverage;
   out.contradicting_images = res.contradicting_images;
+  out.answer_images = res.answer_images;
   out.skipped_views = static_cast<int>(res.skipped_views);
   out.warnings = res.warnings;
   out.confidence = res.confidence;

@@ -240,12 +240,13 @@ void measureImageCoverage(RecognitionRun& run, const std::vector<vision::BitMask
     sum += res.image_coverage.back();
   }
   res.coverage = matched.empty() ? 0.0 : sum / matched.size();
-  res.contradicting_images = 0;
-  if (matched.size() < 2) return;
-  const double best = *std::max_element(res.image_coverage.begin(), res.image_coverage.end());
-  for (double c : res.image_coverage) res.contradicting_images += c < best - run.o.evidence.contradiction_gap;
+  res.contradicting_images = run.left_out_contradicting;
+  if (matched.size() >= 2) {
+    const double best = *std::max_element(res.image_coverage.begin(), res.image_coverage.end());
+    for (double c : res.image_coverage) res.contradicting_images += c < best - run.o.evidence.contradiction_gap;
+  }
   for (int k = 0; k < res.contradicting_images; ++k) res.confidence *= 0.5;
-  if (res.contradicting_images > 0)
+  if (res.contradicting_images > run.left_out_contradicting)
     res.warnings.push_back(std::to_string(res.contradicting_images) + " of " + std::to_string(matched.size()) +
                            " images are explained worse than the best by more than evidence.contradiction_gap: "
                            "confidence halved, grasp points less trusted");

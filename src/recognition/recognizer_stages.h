@@ -49,6 +49,7 @@ struct MemberFit {
   std::size_t hold_point = 0;
   double angle = 0;          // base angle (first image)
   double coarse_angle = 0;
+  double coarse_score = -1;  // mean best-shift IoU of its best stored base view (the cheap pass)
   double score = -1;
   int dx = 0, dy = 0;
   double depth_residual = -1;
@@ -85,6 +86,9 @@ struct RecognitionRun {
   std::vector<std::vector<MemberFit>> fits;    // per coarse entry
   std::vector<Candidate> cands;                // best first
   double confidence = 0;
+  /// Images of the caller's observations left out of this run because they contradicted the others
+  /// (TextileRecognizer::recognize): counted as contradicting in the result.
+  int left_out_contradicting = 0;
 
   /// The images' masks in canonical frame `f` (computed once per frame); kSegmentationFailed if a mask
   /// falls outside the window.

@@ -26,6 +26,7 @@ void RecognizerOptions::validate() const {
   if (match.top_k < 1 || match.max_dx < 0 || match.max_dy < 0) bad("match: top_k must be >= 1 and shift ranges >= 0");
   const RefinementOptions& r = refinement;
   if (r.classes < 1) bad("refinement.classes must be >= 1");
+  if (r.members < 0) bad("refinement.members must be >= 0 (0 = all)");
   if (r.max_shift_px < 0 || r.max_shift_px > 64) bad("refinement.max_shift_px must be in 0..64");
   if (!(r.step_deg > 0 && r.step_deg <= 30)) bad("refinement.step_deg must be in (0, 30]");
   if (!(r.half_range_deg >= 0 && r.half_range_deg <= 180)) bad("refinement.half_range_deg must be in [0, 180]");
@@ -151,10 +152,53 @@ RecognitionResult TextileRecognizer::recognize(const CameraObservation& observat
   return recognize(std::vector<CameraObservation>{observation});
 }
 
-// The stages and what they pass on: src/recognition/recognizer_stages.h.
+// A view that contradicts the others must not flip the answer (RecognitionResult::answer_images).
 RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservation>& obs) const {
   const auto st = state();
+  RecognitionResult fused = recognizeImages(*st, obs, 0);
+  fused.answer_images.clear();
+  for (std::size_t i = 0; i < obs.size(); ++i) fused.answer_images.push_back(static_cast<int>(i));
+  if (fused.contradicting_images == 0 || obs.size() < 2) return fused;
+  // Two groups: the images the fused winner explains (within the gap of the best) and the others. The
+  // answer rests on the first image's group unless the other group is larger.
+  const double best = *std::max_element(fused.image_coverage.begin(), fused.image_coverage.end());
+  std::vector<int> explained, other;
+  for (std::size_t i = 0; i < obs.size(); ++i)
+    (fused.image_coverage[i] < best - st->options.evidence.contradiction_gap ? other : explained).push_back(static_cast<int>(i));
+  const bool first_explained = !explained.empty() && explained.front() == 0;
+  const std::vector<int>& keep = first_explained ? explained : other;
+  const std::vector<int>& against = first_explained ? other : explained;
+  if (keep.size() < against.size() || keep.size() == obs.size()) return fused;  // the majority's answer stands
+  std::vector<CameraObservation> consistent;
+  for (int i : keep) consistent.push_back(obs[static_cast<std::size_t>(i)]);
+  RecognitionResult anchored;
+  try {
+    anchored = recognizeImages(*st, consistent, static_cast<int>(obs.size() - keep.size()));
+  } catch (const RecognitionError&) {
+    return fused;  // the consistent images alone are not enough evidence: the flagged fused answer stands
+  }
+  // With two images, the left-out one only flipped the answer if the first alone answers another class;
+  // otherwise the fused result (two views) stands, flagged. With more, the consistent group's answer.
+  if (obs.size() == 2 && anchored.textile_id == fused.textile_id &&
+      (anchored.canonical_hold_point - fused.canonical_hold_point).norm() < 1e-6)
+    return fused;
+  anchored.answer_images = keep;
+  anchored.total_ms += fused.total_ms;
+  std::string left_out;
+  for (std::size_t i = 0; i < obs.size(); ++i)
+    if (std::find(keep.begin(), keep.end(), static_cast<int>(i)) == keep.end())
+      left_out += (left_out.empty() ? "" : ", ") + std::to_string(i);
+  anchored.warnings.push_back("image(s) " + left_out + " contradict the others (evidence.contradiction_gap): left out of the "
+                              "answer, confidence halved per image, grasp points less trusted");
+  return anchored;
+}
+
+// The stages and what they pass on: src/recognition/recognizer_stages.h.
+RecognitionResult TextileRecognizer::recognizeImages(const State& state, const std::vector<CameraObservation>& obs,
+                                                     int left_out_contradicting) const {
+  const State* st = &state;
   detail::RecognitionRun run(*db_, *st, obs);
+  run.left_out_contradicting = left_out_contradicting;
   detail::checkLoadedState(run, db_->path());
   detail::prepareImages(run);
   detail::coarseQuery(run);

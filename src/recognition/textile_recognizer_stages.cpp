@@ -234,12 +234,13 @@ void refineClasses(RecognitionRun& run) {
     const db::HoldPointClass& cl = li.index.classes[coarse[c].m.class_index];
     const double half = ro.half_range_deg > 0 ? ro.half_range_deg : 0.5 * std::min(li.view_step_deg, 90.0) + 1.0;
     const int steps = static_cast<int>(std::floor(half / ro.step_deg + 1e-9));
+    // Cheap pass: every member's best stored base view (small shifts: the hold pixel is known).
+    std::vector<MemberFit> members;
     for (std::size_t hp : cl.members) {
       const auto& views = li.views[hp];
       if (views.empty()) continue;
       MemberFit fit;
       fit.hold_point = hp;
-      // Best stored base view (small shifts: the hold pixel is known).
       double best = -1;
       for (const auto& [a, mask0] : views) {
         double sum = 0;
@@ -252,6 +253,25 @@ void refineClasses(RecognitionRun& run) {
           fit.coarse_angle = a;
         }
       }
+      fit.coarse_score = best;
+      members.push_back(fit);
+    }
+    // Only the best-matching members are rendered at fine azimuths; they keep the class's order, so a
+    // class with no more members than the cap is refined exactly as without it.
+    if (ro.members > 0 && members.size() > static_cast<std::size_t>(ro.members)) {
+      std::vector<MemberFit> ranked = members;
+      std::stable_sort(ranked.begin(), ranked.end(),
+                       [](const MemberFit& a, const MemberFit& b) { return a.coarse_score > b.coarse_score; });
+      const double cut = ranked[static_cast<std::size_t>(ro.members) - 1].coarse_score;
+      std::size_t ties = static_cast<std::size_t>(ro.members);  // slots left for members scoring exactly `cut`
+      for (const MemberFit& m : members) ties -= m.coarse_score > cut;
+      std::vector<MemberFit> kept;
+      for (const MemberFit& m : members)
+        if (m.coarse_score > cut || (m.coarse_score == cut && ties > 0 && ties--)) kept.push_back(m);
+      members.swap(kept);
+    }
+    for (MemberFit fit : members) {
+      const std::size_t hp = fit.hold_point;
       // Fine azimuths with the camera's projection.
       const auto shape_ptr = run.shape(li.index.hold_points[hp].simulation_id, li.index.hold_points[hp].hold);
       const TextileRecognizer::StoredShape& s = *shape_ptr;

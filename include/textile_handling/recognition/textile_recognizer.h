@@ -45,6 +45,11 @@ struct RefinementOptions {
   bool enabled = true;
   /// Coarse hold-point classes (best first) whose members are refined.
   int classes = 3;
+  /// Members of a refined class rendered at fine azimuths: those whose stored views match best (the
+  /// cheap first pass); 0 = all. A class holds up to 4 mirror rows per build member (docs/database.md,
+  /// "Members"), so without a cap refinement time grows with the members; 4 keeps the cost of a
+  /// one-member database.
+  int members = 4;
   /// Shift search [canonical px] of the refinement (the hold pixel is known, so shifts stay small).
   int max_shift_px = 4;
   /// Fine azimuth step [deg] and half range around the best stored view [deg] (0 = half the stored view
@@ -202,11 +207,20 @@ struct RecognitionResult {
   // ---- evidence ----
   double coverage = 0;                  ///< see EvidenceOptions::min_coverage (mean over the images)
   std::vector<double> image_coverage;   ///< per image: its own coverage by the winner
-  /// Images of a fused result that the winner explains much worse than the best image
-  /// (EvidenceOptions::contradiction_gap): a view that contradicts the others. Each halves the confidence;
-  /// any makes the match weak for the per-point trust (every bound doubled). The answer itself is still
-  /// the fused one: with two images nothing says which of them is wrong.
+  /// Images of a fused result that the fused winner explains much worse than the best image
+  /// (EvidenceOptions::contradiction_gap): views that contradict the others. Each halves the confidence;
+  /// any makes the match weak for the per-point trust (every bound doubled). A contradicting view does
+  /// not decide the answer (answer_images).
   int contradicting_images = 0;
+  /// The images the answer rests on (indices into the observations, the first always among them). All
+  /// of them unless some contradict. Then the images split into those the fused winner explains (within
+  /// the gap of the best) and the others; the first image's group is the consistent one unless the other
+  /// group is larger (then the fused answer stands). The answer is recognised again from the consistent
+  /// group alone: with three or more images that is the answer; with two (the first image alone), it is
+  /// the answer only if it names another hold-point class than the fused one, which otherwise stands
+  /// (flagged, both images). The per-image fields (geometry, relative_view_deg, image_masks,
+  /// query_masks, image_coverage) list the answer's images only.
+  std::vector<int> answer_images;
   double colour_fraction = -1;          ///< first image; see EvidenceOptions::max_colour_fraction
   std::size_t skipped_views = 0;        ///< damaged stored views left out at the last load
   /// Load problems that did not stop the recognition: damaged views skipped, unbuilt textiles ignored.
@@ -264,6 +278,10 @@ class TextileRecognizer {
 
  private:
   std::shared_ptr<const State> state() const;
+  /// The recognition stages on `observations` (recognize() decides which images take part);
+  /// `left_out_contradicting` images of the caller's set were left out as contradicting.
+  RecognitionResult recognizeImages(const State& state, const std::vector<CameraObservation>& observations,
+                                    int left_out_contradicting) const;
   /// The stored rest shape of a simulation (cached per loaded state: ids can be reused after a
   /// resimulation); `expected_hold` guards against a database that changed under a running recognition.
   std::shared_ptr<const StoredShape> shape(const State& state, std::int64_t simulation_id, const Vec2& expected_hold) const;
