@@ -122,6 +122,13 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   ro.build.hold_height = hold_position_.z();
   ro.build.settings.memory_budget_bytes = settings_.memory_budget_bytes;
   pnh.param("database_self_collision", ro.build.self_collision, false);
+  std::string members = "base";
+  pnh.param<std::string>("database_members", members, members);
+  try {
+    ro.members = db::drapeMembersByName(members);
+  } catch (const db::InvalidInputError& e) {
+    throw std::runtime_error(std::string("parameter ~database_members: ") + e.what());
+  }
   ro.max_hold_points = positiveIntParam(pnh, "max_hold_points", ro.max_hold_points);
   pnh.param("max_failed_fraction", ro.max_failed_fraction, ro.max_failed_fraction);
   if (!(ro.max_failed_fraction >= 0 && ro.max_failed_fraction <= 1))

@@ -339,8 +339,22 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
       p.eta_s = std::max(0.0, progress.eta_s);  // the message's 0 = unknown or done
       emit(p);
     };
-    db::DrapeDatabaseBuilder builder(wdb, job.config);
-    const db::DrapeBuildReport rep = builder.build();
+    // One build per database member (the base alone by default); the report sums them.
+    const std::vector<db::DrapeMemberSpec> members =
+        options_.members.empty() ? db::drapeMembersByName("base") : options_.members;
+    db::DrapeBuildReport rep;
+    for (const db::DrapeMemberSpec& m : members) {
+      if (stop_requested_) break;
+      db::DrapeDatabaseBuilder builder(wdb, db::memberBuildConfig(job.config, m));
+      const db::DrapeBuildReport r = builder.build();
+      rep.generation = r.generation;
+      rep.already_done += r.already_done;
+      rep.simulated_now += r.simulated_now;
+      rep.to_simulate += r.to_simulate;
+      rep.failed_now += r.failed_now;
+      rep.derived_now += r.derived_now;
+      rep.failures.insert(rep.failures.end(), r.failures.begin(), r.failures.end());
+    }
     e.done = rep.already_done + rep.simulated_now;
     e.total = rep.to_simulate;
     e.failed = rep.failed_now;
@@ -368,8 +382,12 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
 bool TextileRegistry::promoteIfComplete(db::HangingDrapeDatabase& wdb, const Job& job, const db::DrapeBuildReport& rep,
                                         std::string* outcome) {
   try {
-    const db::PromotionReport p = wdb.promoteStagedGeneration(
-        job.textile_id, rep.generation, db::DrapeDatabaseBuilder::parameterTexts(job.config), options_.max_failed_fraction);
+    std::vector<std::string> texts;  // every member's rows must be complete enough
+    for (const db::DrapeMemberSpec& m : options_.members.empty() ? db::drapeMembersByName("base") : options_.members)
+      for (const std::string& t : db::DrapeDatabaseBuilder::parameterTexts(db::memberBuildConfig(job.config, m)))
+        texts.push_back(t);
+    const db::PromotionReport p =
+        wdb.promoteStagedGeneration(job.textile_id, rep.generation, texts, options_.max_failed_fraction);
     *outcome = "generation " + std::to_string(p.generation) + " active (" + std::to_string(p.done) + " done, " +
                std::to_string(p.failed) + " failed; " + std::to_string(p.removed_simulations) +
                " old simulations removed)";

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <string>
 #include <unistd.h>
@@ -151,6 +152,30 @@ TEST(TextileRegistry, ResimulateReplacesTheEntriesWithTheNewSettings) {
   // The held particle hangs at the top.
   for (Index k = 0; k < after.positions.size() / 3; ++k)
     EXPECT_LE(after.positions[3 * k + 2], after.positions[3 * after.held_particle + 2] + 1e-9);
+}
+
+TEST(TextileRegistry, EveryBuildMakesTheConfiguredMembers) {
+  RegistryOptions o = smallOptions();
+  o.members = db::drapeMembersByName("base,soft_light");
+  TextileRegistry reg(tempDb("members"), o);
+  const QueuedBuild q = reg.registerTextile(napkin());
+  ASSERT_TRUE(reg.waitIdle(300.0));
+  auto list = reg.list();
+  ASSERT_EQ(list.size(), 1u);
+  EXPECT_EQ(list[0].counts.done, 2 * 9);
+  db::HangingDrapeDatabase db(reg.databasePath());
+  std::map<std::string, int> stored = db::storedMembers(db, q.textile_id);
+  EXPECT_EQ(stored, (std::map<std::string, int>{{"base", 9}, {"soft_light", 9}}));
+  // A resimulation builds both members into the new generation and promotes them together.
+  ResimulationRequest r;
+  r.textile_id = q.textile_id;
+  r.spacing = 0.06;
+  reg.resimulate(r);
+  ASSERT_TRUE(reg.waitIdle(300.0));
+  list = reg.list();
+  EXPECT_EQ(list[0].counts.done, 2 * 9);
+  stored = db::storedMembers(db, q.textile_id);
+  EXPECT_EQ(stored, (std::map<std::string, int>{{"base", 9}, {"soft_light", 9}}));
 }
 
 TEST(TextileRegistry, ChoiKoModelIsSelectableAtRegistration) {

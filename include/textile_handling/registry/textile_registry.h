@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/hanging_drape_database.h"
 
@@ -49,6 +50,9 @@ struct ResimulationRequest {
 struct RegistryOptions {
   /// Template of every build: simulation settings, views, workers, default spacing and lattice.
   db::DrapeBuildConfig build;
+  /// Database members every build makes, in order (db/drape_build_members.h); empty = the base only.
+  /// A resimulation is promoted when every member's rows are complete enough (max_failed_fraction).
+  std::vector<db::DrapeMemberSpec> members;
   /// Directory of material YAML files (NAME.yaml); "cotton" is also built in.
   std::string material_dir;
   /// Upper bound on the hold points of one build (a guard against absurd lattice spacings).
