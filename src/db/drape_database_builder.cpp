@@ -174,6 +174,20 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   return t;
 }
 
+void accumulateBuildReport(DrapeBuildReport& total, const DrapeBuildReport& part) {
+  total.textile_id = part.textile_id;
+  total.generation = part.generation;
+  total.planned += part.planned;
+  total.to_simulate += part.to_simulate;
+  total.already_done += part.already_done;
+  total.simulated_now += part.simulated_now;
+  total.failed_now += part.failed_now;
+  total.derived_now += part.derived_now;
+  total.wall_seconds += part.wall_seconds;
+  total.simulation_seconds += part.simulation_seconds;
+  total.failures.insert(total.failures.end(), part.failures.begin(), part.failures.end());
+}
+
 namespace {
 
 // The heap seed of one hold point: the build's seed mixed with the hold point in whole micrometres
@@ -308,17 +322,7 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
     if (config_.should_stop && config_.should_stop()) break;
     const std::vector<PlannedHoldPoint> plan = passPlan(corner);
     if (plan.empty()) continue;
-    const DrapeBuildReport r = buildPass(corner, plan);
-    total.textile_id = r.textile_id;
-    total.generation = r.generation;
-    total.planned += r.planned;
-    total.to_simulate += r.to_simulate;
-    total.already_done += r.already_done;
-    total.simulated_now += r.simulated_now;
-    total.failed_now += r.failed_now;
-    total.derived_now += r.derived_now;
-    total.simulation_seconds += r.simulation_seconds;
-    total.failures.insert(total.failures.end(), r.failures.begin(), r.failures.end());
+    accumulateBuildReport(total, buildPass(corner, plan));
   }
   total.wall_seconds = secondsSince(t0);
   return total;

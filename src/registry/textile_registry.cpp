@@ -343,18 +343,7 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
     const std::vector<db::DrapeMemberSpec> members =
         options_.members.empty() ? db::drapeMembersByName("base") : options_.members;
     db::DrapeBuildReport rep;
-    for (const db::DrapeMemberSpec& m : members) {
-      if (stop_requested_) break;
-      db::DrapeDatabaseBuilder builder(wdb, db::memberBuildConfig(job.config, m));
-      const db::DrapeBuildReport r = builder.build();
-      rep.generation = r.generation;
-      rep.already_done += r.already_done;
-      rep.simulated_now += r.simulated_now;
-      rep.to_simulate += r.to_simulate;
-      rep.failed_now += r.failed_now;
-      rep.derived_now += r.derived_now;
-      rep.failures.insert(rep.failures.end(), r.failures.begin(), r.failures.end());
-    }
+    for (const db::DrapeBuildReport& r : db::buildDrapeMembers(wdb, job.config, members)) db::accumulateBuildReport(rep, r);
     e.done = rep.already_done + rep.simulated_now;
     e.total = rep.to_simulate;
     e.failed = rep.failed_now;

@@ -187,6 +187,10 @@ struct DrapeBuildReport {
   std::vector<std::string> failures;  ///< "hold (x, y): reason"
 };
 
+/// Adds the counts, times and failures of `part` (one pass, or one member's build) to `total`; the
+/// textile id and generation become part's.
+void accumulateBuildReport(DrapeBuildReport& total, const DrapeBuildReport& part);
+
 class DrapeDatabaseBuilder {
  public:
   /// Validates the configuration (outline, material, finite settings: by building the scene of the
