@@ -7,7 +7,8 @@
 //
 // Builds (or resumes) the held-out drapes into DIR/foreign_drapes.sqlite: N hold points per variant
 // anywhere on the towel (default 6; variants: Choi-Ko; two materials; d = 0.8 cm with self-collision and
-// a tilted start; Choi-Ko with self-collision and a tilted start; picked from a heap at d = 0.8 cm).
+// a tilted start; Choi-Ko with self-collision and a tilted start; picked from a heap at d = 0.8 cm; and
+// the thesis experiment's kind: the database's own model and material at d = 0.8 cm).
 // Renders each drape from `--views` random camera azimuths (default 3) with colour, depth and noise, plus
 // for each a second image after a gripper turn of 90 degrees, and recognises every image alone and every
 // pair fused, with the recognizer's defaults against DB. Rows: DIR/foreign_drapes.csv (one per recognition); charts:
@@ -191,7 +192,7 @@ int main(int argc, char** argv) {
     for (auto& v : bench::foreignDrapeVariants(so))
       if (o.variants.empty() || std::find(o.variants.begin(), o.variants.end(), v.name) != o.variants.end())
         variants.push_back(std::move(v));
-    if (variants.empty()) return usage("no variant of that name (choi_ko, stiff_light, soft_heavy, fine_collision, choi_ko_collision, heap)");
+    if (variants.empty()) return usage("no variant of that name (choi_ko, stiff_light, soft_heavy, fine_collision, choi_ko_collision, heap, thesis)");
     int failed = 0;
     const auto t0 = std::chrono::steady_clock::now();
     const std::vector<bench::ForeignDrape> drapes = bench::buildForeignDrapes(

@@ -91,6 +91,10 @@ std::vector<ForeignDrapeVariant> foreignDrapeVariants(const ForeignDrapeSetOptio
         c.spacing = 0.008;
         c.start_heap = HeapStart{3, 7, 85};
       });
+  // The thesis experiment's kind of held-out shape (drape_db bench): the database's own model, material
+  // and start at another resolution, held anywhere; the easy case, kept as a reference row.
+  add("thesis", "the database's model, material and flat start at d = 0.8 cm (the thesis experiment's held-out kind)",
+      [](db::DrapeBuildConfig& c) { c.spacing = 0.008; });
   std::mt19937_64 rng(o.seed);
   for (ForeignDrapeVariant& v : out)
     for (int k = 0; k < o.holds_per_variant; ++k) v.config.hold_points.push_back(randomHoldPoint(v.config.textile, o.edge_share, rng));

@@ -39,7 +39,8 @@ struct ForeignDrapeSetOptions {
 /// The held-out variants, all of the thesis towel, none with the database's exact settings:
 /// Choi-Ko; materials with bending x1.5 / shear x0.5 / density x0.8 and the opposite; d = 0.8 cm with
 /// self-collision and a tilted start; Choi-Ko with self-collision and a tilted start; a start picked
-/// from a heap (three folds) at d = 0.8 cm. Hold points are
+/// from a heap (three folds) at d = 0.8 cm; and, as the reference row, the thesis experiment's kind
+/// (the database's model and material at d = 0.8 cm). Hold points are
 /// drawn from `options.seed` (the same seed gives the same set).
 std::vector<ForeignDrapeVariant> foreignDrapeVariants(const ForeignDrapeSetOptions& options);
 
