@@ -117,6 +117,14 @@ TEST_F(DrapeDbCli, HugeYamlIsRefusedBeforeParsing) {
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/never.sqlite"));
 }
 
+TEST_F(DrapeDbCli, UnknownMembersAreRefusedBeforeTheDatabaseIsOpened) {
+  for (const std::string& list : {"base,crumpled", "heap,heap", ""}) {
+    const ToolRun r = runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "towel", "--members", list});
+    expectRefused(r, "--members");
+  }
+  EXPECT_FALSE(std::filesystem::exists(dir_ + "/never.sqlite"));
+}
+
 TEST_F(DrapeDbCli, ADamagedStoredViewIsSkippedAndReported) {
   const std::string copy = dir_ + "/damaged.sqlite";
   std::filesystem::copy_file(db_, copy, std::filesystem::copy_options::overwrite_existing);
