@@ -116,8 +116,8 @@ VecX heapStartPositions(const ParticleGrid& grid, Index hold_particle, const Hea
     }
   }
 
-  // Lift: the bundle turns down about the held particle, away from nothing in particular but its own
-  // centroid, as a gripper pulling a point up out of a heap leaves the rest hanging below it.
+  // Lift: the bundle turns down about the held particle, its centroid going below it, as a gripper
+  // pulling a point up out of a heap leaves the rest hanging underneath.
   const Vec3 hold(q[hold_particle].x(), q[hold_particle].y(), z[hold_particle]);
   Vec3 centroid = Vec3::Zero();
   for (Index i = 0; i < n; ++i) centroid += Vec3(q[i].x(), q[i].y(), z[i]);

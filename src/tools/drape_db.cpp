@@ -396,6 +396,12 @@ int cmdList(const Args& a) {
               << t.symmetry.name() << ", " << t.outline.named_points.size() << " grasp points; simulations: " << n.done
               << " done, " << n.pending << " pending, " << n.failed << " failed (" << n.derived << " mirrored); "
               << n.views << " views\n";
+    const std::map<std::string, int> members = storedMembers(db, t.id);
+    if (members.size() > 1 || (members.size() == 1 && members.begin()->first != "base")) {
+      std::cout << "  finished rest shapes per member:";
+      for (const auto& [name, count] : members) std::cout << " " << name << " " << count;
+      std::cout << "\n";
+    }
     if (!a.has("--simulations")) continue;
     std::cout << "  id  status   source     hold_x_m  hold_y_m  lattice  d_m     rest  sim_s  wall_s  steps  views  "
                  "depth_m  note\n";
