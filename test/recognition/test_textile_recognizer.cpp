@@ -163,22 +163,25 @@ double oracleError(const Truth& t, const VecX& db_positions, const ParticleGrid&
   return best;
 }
 
+// One stored simulation as a truth (oracle not set).
+Truth truthOf(const db::HangingDrapeDatabase& db, const db::SimulationRecord& s) {
+  const db::StoredDrapeMesh m = db::loadDrapeMesh(db, s.id);
+  Truth tr;
+  tr.hold = s.hold;
+  tr.positions = m.positions;
+  tr.triangles = m.triangles;
+  std::string err;
+  tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
+  tr.held = m.held_particle;
+  return tr;
+}
+
 // Every finished simulation of the small towel in `db` as a truth (oracle not set).
 std::vector<Truth> loadTruths(const db::HangingDrapeDatabase& db) {
   std::vector<Truth> out;
   const auto t = db.findTextile("small_towel");
   if (!t) return out;
-  for (const auto& s : db.simulations(t->id, db::SimulationStatus::kDone)) {
-    const db::StoredDrapeMesh m = db::loadDrapeMesh(db, s.id);
-    Truth tr;
-    tr.hold = s.hold;
-    tr.positions = m.positions;
-    tr.triangles = m.triangles;
-    std::string err;
-    tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
-    tr.held = m.held_particle;
-    out.push_back(tr);
-  }
+  for (const auto& s : db.simulations(t->id, db::SimulationStatus::kDone)) out.push_back(truthOf(db, s));
   return out;
 }
 
@@ -314,14 +317,7 @@ TEST_F(RecognizerTest, StoredShapesBetweenViewsAreRecoveredClosely) {
     const bool wanted = (s.hold - Vec2(0.06, 0.06)).norm() < 1e-6 || (s.hold - Vec2(0.30, 0.12)).norm() < 1e-6 ||
                         (s.hold - Vec2(0.18, 0.24)).norm() < 1e-6;
     if (!wanted) continue;
-    const db::StoredDrapeMesh m = db::loadDrapeMesh(db, s.id);
-    Truth tr;
-    tr.hold = s.hold;
-    tr.positions = m.positions;
-    tr.triangles = m.triangles;
-    std::string err;
-    tr.grid = ParticleGrid::rasterize(m.textile.outline, s.spacing, &err);
-    tr.held = m.held_particle;
+    const Truth tr = truthOf(db, s);
     for (double az : {37.3, 144.6}) {
       for (bool depth : {true, false}) {
         const RecognitionResult r = rec.recognize(observe(tr, az, 0.0, depth, 500 + n++));
