@@ -192,6 +192,18 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
       lowest = np.position;
     }
   }
+  auto nearestTruthCorner = [&](const Vec3& pc) {
+    double best = std::numeric_limits<double>::infinity();
+    for (const auto& np : drape.mesh.textile.outline.named_points)
+      if (np.kind == "corner") best = std::min(best, (pc - truthAt(np.position)).norm());
+    return best;
+  };
+  auto nearestTruthParticle = [&](const Vec3& pc) {
+    double best = std::numeric_limits<double>::infinity();
+    for (Eigen::Index i = 0; i + 2 < drape.mesh.positions.size(); i += 3)
+      best = std::min(best, (pc - camera.toCamera(drape.mesh.positions.segment<3>(i))).norm());
+    return best;
+  };
   double best_hold = std::numeric_limits<double>::infinity();
   for (db::MirrorKind g : group) best_hold = std::min(best_hold, (sym.apply(g, drape.hold) - r.hold_point).norm());
   s.hold_error_m = best_hold;
@@ -202,6 +214,8 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
     c.corner_names.clear();
     c.corner_error_m.clear();
     c.corner_poses.clear();
+    c.corner_any_truth_corner_m.clear();
+    c.corner_truth_surface_m.clear();
     double sum = 0, best = std::numeric_limits<double>::infinity(), worst = 0, low = -1;
     for (const recognition::GraspPose& p : r.grasp_poses) {
       if (p.kind != "corner") continue;
@@ -212,6 +226,8 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
       c.corner_names.push_back(p.name);
       c.corner_error_m.push_back(e);
       c.corner_poses.push_back(p);
+      c.corner_any_truth_corner_m.push_back(nearestTruthCorner(p.position_camera));
+      c.corner_truth_surface_m.push_back(nearestTruthParticle(p.position_camera));
       sum += e;
       best = std::min(best, e);
       worst = std::max(worst, e);

@@ -66,6 +66,19 @@ Vec3 toPosesFrame(const GraspPointView& v, double u, double row, double z) {
   return v.rotation.transpose() * (c - v.translation);
 }
 
+// The textile has one lowest point: a view's lowest outline corner hanging more than `agreement_m`
+// above another view's is a fold or a side corner (the real lowest point is round or hidden in that
+// view), so it loses the mark.
+void keepOneLowestHeight(double agreement_m, std::vector<std::vector<OutlineCorner>>* per_view) {
+  double lowest_z = std::numeric_limits<double>::infinity();
+  for (const auto& corners : *per_view)
+    for (const OutlineCorner& c : corners)
+      if (c.lowest) lowest_z = std::min(lowest_z, c.position.z());
+  for (auto& corners : *per_view)
+    for (OutlineCorner& c : corners)
+      if (c.lowest && c.position.z() > lowest_z + agreement_m) c.lowest = false;
+}
+
 }  // namespace
 
 std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const GraspPointLocalisationOptions& o) {
@@ -142,9 +155,11 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
   for (std::size_t i = 0; i < n; ++i)
     if (is_corner[i] && predicted[i].allFinite()) lowest_predicted = std::min(lowest_predicted, predicted[i].z());
   // Per point, the outline corners assigned to it (one per image).
+  std::vector<std::vector<OutlineCorner>> per_view;
+  for (const GraspPointView& v : views) per_view.push_back(findOutlineCorners(v, o));
+  keepOneLowestHeight(o.agreement_m, &per_view);
   std::vector<std::vector<OutlineCorner>> assigned(n);
-  for (const GraspPointView& v : views) {
-    const std::vector<OutlineCorner> corners = findOutlineCorners(v, o);
+  for (const std::vector<OutlineCorner>& corners : per_view) {
     std::vector<bool> point_used(n, false), corner_used(corners.size(), false);
     std::vector<std::tuple<double, std::size_t, std::size_t>> pairs;
     for (std::size_t i = 0; i < n; ++i) {
@@ -178,6 +193,12 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
       lowest = lowest || c.lowest;
     }
     L.position = sum / L.images;
+    for (const OutlineCorner& c : assigned[i]) {
+      const double d = (c.position - L.position).norm();
+      if ((c.position - nearest->position).norm() <= o.agreement_m) continue;
+      ++L.disagreeing_images;
+      L.disagreement_m = std::max(L.disagreement_m, d);
+    }
     L.shift_m = (L.position - predicted[i]).norm();
     for (std::size_t j = 0; j < n; ++j)
       if (j != i && predicted[j].allFinite())

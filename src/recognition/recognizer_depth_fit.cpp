@@ -269,15 +269,15 @@ void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>
     gp.evidence = L.evidence;
     gp.located_shift_m = L.shift_m;
     gp.located_images = L.images;
+    gp.disagreeing_images = L.disagreeing_images;
+    gp.disagreement_m = L.disagreement_m;
     gp.label_margin_m = L.label_margin_m;
     if (locatedFromData(L.evidence)) {
       gp.position = L.position;
       gp.position_camera = run.imgs[0].g.holdToCamera(gp.position);
       gp.observation = observeGraspPoint(gp.position, seen, o.observation);
     }
-    // A contradicting image makes the match weak (score 0 for the trust).
-    const double score = run.res.contradicting_images > 0 ? 0.0 : run.res.score;
-    gp.uncertainty_m = graspPointUncertainty(gp.evidence, gp.located_shift_m, gp.label_margin_m, score, o.trust);
+    gp.uncertainty_m = graspPointUncertainty(L, run.res.score, run.res.contradicting_images, o.trust);
     gp.safe = gp.uncertainty_m <= o.trust.safe_bound_m;
   }
 }

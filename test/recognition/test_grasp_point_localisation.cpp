@@ -1,10 +1,13 @@
 // locateGraspPoints / findOutlineCorners (grasp_point_localisation.h) and graspPointUncertainty
 // (grasp_point_trust.h): predicted corners move to the outline corners a view with depth shows, the
-// gripper's apex is ignored, unseen points keep their prediction, close labels are flagged; error bounds
-// order the evidence and grow with the move and a doubtful label.
+// gripper's apex is ignored, unseen points keep their prediction, close labels are flagged, views that
+// see different lowest points or place a corner differently are told apart; error bounds order the
+// evidence, grow with the move, a doubtful label and a disagreeing view, and shrink where views agree.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <opencv2/imgproc.hpp>
 
@@ -21,13 +24,14 @@ namespace {
 // (x right, z up, hold at the origin), 1.5 m in front of a 640 x 480 camera (camera x = x, y = -z, z = y).
 const Vec3 kLeft(-0.25, 0, -0.25), kRight(0.25, 0, -0.25), kBottom(0, 0, -0.5);
 
-GraspPointView diamondView(bool with_depth = true) {
+// `bottom`: where the diamond's lowest corner hangs (another drape in a second view).
+GraspPointView diamondView(bool with_depth = true, const Vec3& bottom = kBottom) {
   GraspPointView v;
   v.intrinsics = vision::PinholeIntrinsics{525.0, 525.0, 319.5, 239.5, 640, 480};
   v.rotation << 1, 0, 0, 0, 0, -1, 0, 1, 0;
   v.translation = Vec3(0, -0.3, 1.5);
   std::vector<cv::Point> poly;
-  for (const Vec3& p : {Vec3(0, 0, 0), kRight, kBottom, kLeft}) {
+  for (const Vec3& p : {Vec3(0, 0, 0), kRight, bottom, kLeft}) {
     const Vec3 c = v.rotation * p + v.translation;
     poly.emplace_back(static_cast<int>(std::lround(525.0 * c.x() / c.z() + 319.5)),
                       static_cast<int>(std::lround(525.0 * c.y() / c.z() + 239.5)));
@@ -39,6 +43,18 @@ GraspPointView diamondView(bool with_depth = true) {
     v.depth.setTo(1.5f, v.mask);
   }
   return v;
+}
+
+GraspPointLocation located(GraspPointEvidence evidence, double shift_m, double label_margin_m, int images = 1,
+                           double disagreement_m = 0) {
+  GraspPointLocation L;
+  L.evidence = evidence;
+  L.shift_m = shift_m;
+  L.label_margin_m = label_margin_m;
+  L.images = images;
+  L.disagreeing_images = disagreement_m > 0 ? 1 : 0;
+  L.disagreement_m = disagreement_m;
+  return L;
 }
 
 }  // namespace
@@ -120,7 +136,7 @@ TEST(GraspPointLocalisation, TwoPredictionsNearOneOutlineCornerGiveASmallLabelMa
   EXPECT_EQ(L[1].evidence, GraspPointEvidence::kModel);
   // Its bound then covers the neighbour: not safe.
   const GraspPointTrustOptions t;
-  EXPECT_GT(graspPointUncertainty(L[0].evidence, L[0].shift_m, L[0].label_margin_m, 0.9, t), t.safe_bound_m);
+  EXPECT_GT(graspPointUncertainty(L[0], 0.9, 0, t), t.safe_bound_m);
   // A long move to an outline corner about as near to another prediction is not made.
   const std::vector<GraspPointLocation> far =
       locateGraspPoints({Vec3(-0.06, 0, -0.44), Vec3(0.07, 0, -0.43)}, {true, true}, {true, false}, {diamondView()});
@@ -129,28 +145,77 @@ TEST(GraspPointLocalisation, TwoPredictionsNearOneOutlineCornerGiveASmallLabelMa
   EXPECT_EQ(far[1].evidence, GraspPointEvidence::kModel);
 }
 
+TEST(GraspPointLocalisation, ViewsThatAgreeAndViewsThatSeeAnotherLowestPoint) {
+  const std::vector<Vec3> predicted = {Vec3(0.02, 0, -0.46)};  // the bottom corner, 4.5 cm off
+  // Two views of the same drape: both place it at the bottom, one location from two images.
+  const std::vector<GraspPointLocation> same =
+      locateGraspPoints(predicted, {true}, {false}, {diamondView(), diamondView()});
+  EXPECT_EQ(same[0].evidence, GraspPointEvidence::kLowestPoint);
+  EXPECT_EQ(same[0].images, 2);
+  EXPECT_EQ(same[0].disagreeing_images, 0);
+  EXPECT_LT((same[0].position - kBottom).norm(), 0.01);
+  // The second view's lowest sharp turn hangs 5 cm higher, 2.2 cm from the prediction: it is not the
+  // textile's lowest point (the first view shows a lower one), and the first view places the corner
+  // 6.4 cm from it: the nearer location is kept as an ordinary outline corner, with the dispute.
+  const Vec3 high_bottom(0.04, 0, -0.45);
+  const std::vector<OutlineCorner> alone = findOutlineCorners(diamondView(true, high_bottom), {});
+  ASSERT_FALSE(alone.empty());
+  EXPECT_TRUE(std::any_of(alone.begin(), alone.end(), [](const OutlineCorner& c) { return c.lowest; }));
+  const std::vector<GraspPointLocation> disputed =
+      locateGraspPoints(predicted, {true}, {false}, {diamondView(), diamondView(true, high_bottom)});
+  EXPECT_EQ(disputed[0].evidence, GraspPointEvidence::kOutlineCorner);
+  EXPECT_EQ(disputed[0].images, 1);
+  EXPECT_LT((disputed[0].position - high_bottom).norm(), 0.01);
+  EXPECT_EQ(disputed[0].disagreeing_images, 1);
+  EXPECT_NEAR(disputed[0].disagreement_m, (kBottom - high_bottom).norm(), 0.01);
+  const GraspPointTrustOptions t;
+  EXPECT_GT(graspPointUncertainty(disputed[0], 0.9, 0, t), t.safe_bound_m);
+  const std::vector<GraspPointLocation> one = locateGraspPoints(predicted, {true}, {false}, {diamondView()});
+  EXPECT_EQ(one[0].images, 1);
+  EXPECT_LT(graspPointUncertainty(same[0], 0.9, 0, t), graspPointUncertainty(one[0], 0.9, 0, t));
+}
+
 TEST(GraspPointTrust, BoundsOrderTheEvidenceAndGrowWithDoubt) {
   const GraspPointTrustOptions t;
   const double inf = std::numeric_limits<double>::infinity();
-  const double lowest = graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.01, inf, 0.9, t);
-  const double outline = graspPointUncertainty(GraspPointEvidence::kOutlineCorner, 0.01, inf, 0.9, t);
-  const double surface = graspPointUncertainty(GraspPointEvidence::kSurface, 0, inf, 0.9, t);
-  const double model = graspPointUncertainty(GraspPointEvidence::kModel, 0, inf, 0.9, t);
+  using E = GraspPointEvidence;
+  const double lowest = graspPointUncertainty(located(E::kLowestPoint, 0.01, inf), 0.9, 0, t);
+  const double outline = graspPointUncertainty(located(E::kOutlineCorner, 0.01, inf), 0.9, 0, t);
+  const double surface = graspPointUncertainty(located(E::kSurface, 0, inf, 0), 0.9, 0, t);
+  const double model = graspPointUncertainty(located(E::kModel, 0, inf, 0), 0.9, 0, t);
   EXPECT_LE(lowest, outline);
   EXPECT_LT(outline, surface);
   EXPECT_LT(surface, model);
   EXPECT_LE(lowest, t.safe_bound_m);
   EXPECT_GT(surface, t.safe_bound_m);
-  // A longer move, a doubtful label, a poor silhouette match: larger bounds.
-  EXPECT_GT(graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.10, inf, 0.9, t), lowest);
-  EXPECT_GT(graspPointUncertainty(GraspPointEvidence::kLowestPoint, 0.01, 0.01, 0.9, t), lowest);
-  EXPECT_DOUBLE_EQ(graspPointUncertainty(GraspPointEvidence::kModel, 0, inf, 0.5, t), 2 * model);
+  // A longer move, a doubtful label, a poor silhouette match, a contradicting image: larger bounds.
+  EXPECT_GT(graspPointUncertainty(located(E::kLowestPoint, 0.10, inf), 0.9, 0, t), lowest);
+  EXPECT_GT(graspPointUncertainty(located(E::kLowestPoint, 0.01, 0.01), 0.9, 0, t), lowest);
+  EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kModel, 0, inf, 0), 0.5, 0, t), 2 * model);
+  EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kLowestPoint, 0.01, inf), 0.9, 1, t), 2 * lowest);
+  // Another image placed it 5 cm away: its bound covers that, not safe.
+  const double disputed = graspPointUncertainty(located(E::kLowestPoint, 0.01, inf, 1, 0.05), 0.9, 0, t);
+  EXPECT_NEAR(disputed, lowest + 0.05, 1e-12);
+  EXPECT_GT(disputed, t.safe_bound_m);
+  // Two images agree: a smaller bound, which a weaker silhouette match or a contradicting image (the
+  // images saw the same corner) does not double.
+  const double agreed = graspPointUncertainty(located(E::kLowestPoint, 0.01, inf, 2), 0.9, 0, t);
+  EXPECT_NEAR(agreed, lowest - t.agreeing_m, 1e-12);
+  EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kLowestPoint, 0.01, inf, 2), 0.5 * (t.weak_score + t.weak_score_agreeing), 1, t),
+                   agreed);
+  EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kLowestPoint, 0.01, inf, 2), t.weak_score_agreeing - 0.01, 0, t), 2 * agreed);
   // Bad options name their field.
   GraspPointTrustOptions bad;
   bad.surface_m = std::nan("");
   EXPECT_THROW(bad.validate(), RecognitionError);
   bad = {};
   bad.shift_gain = -1;
+  EXPECT_THROW(bad.validate(), RecognitionError);
+  bad = {};
+  bad.weak_score_agreeing = 1.5;
+  EXPECT_THROW(bad.validate(), RecognitionError);
+  bad = {};
+  bad.agreeing_m = -0.01;
   EXPECT_THROW(bad.validate(), RecognitionError);
   GraspPointLocalisationOptions lb;
   lb.max_corner_angle_deg = 180;

@@ -16,7 +16,10 @@
 //   * its 3-D point: the pixel's ray at the median measured depth of the mask pixels within
 //     `depth_window_px` (the tip pixel itself is often a mixed or missing return);
 //   * outline corners within `hold_exclusion_m` of the hold point are the gripper's apex: dropped;
-//   * the corner whose point hangs lowest (gravity, the poses' frame z) is marked as the lowest point.
+//   * the corner whose point hangs lowest (gravity, the poses' frame z) is marked as the lowest point;
+//     with several views, only if it is within `agreement_m` of the lowest outline corner of every view
+//     (the textile has one lowest point; a view whose own lowest sharp turn hangs higher sees a fold or
+//     side corner there, the real lowest point being round or hidden in that view).
 // Assignment per image: every (predicted corner, outline corner) pair closer than `search_radius_m` in
 // 3-D, nearest pair first, each used once; the lowest outline corner may reach `lowest_search_radius_m`
 // but only predicted corners hanging within `lowest_height_slack_m` of the lowest predicted corner.
@@ -95,6 +98,10 @@ struct GraspPointLocation {
   Vec3 position = Vec3::Zero();  ///< the located position (= the prediction for kModel / kSurface)
   double shift_m = 0;            ///< |located - predicted|
   int images = 0;                ///< images whose outline corner was used
+  /// Images that assigned this point an outline corner farther than `agreement_m` from the location
+  /// (another view saw something else there), and the largest such distance [m] (0 if none).
+  int disagreeing_images = 0;
+  double disagreement_m = 0;
   /// How clearly the label fits: the located position's distance to the nearest other predicted point
   /// (corner or named point: an edge midpoint hanging as low as a corner is not one) minus its distance
   /// to this one [m]. Small or negative: another named point of the matched shape hangs as near the

@@ -67,6 +67,8 @@ struct GraspPose {
   GraspPointEvidence evidence = GraspPointEvidence::kModel;
   double located_shift_m = 0;
   int located_images = 0;  ///< images whose outline corner placed the point (agreeing within localisation.agreement_m)
+  int disagreeing_images = 0;  ///< GraspPointLocation::disagreeing_images (another image placed it elsewhere)
+  double disagreement_m = 0;   ///< GraspPointLocation::disagreement_m
   /// GraspPointLocation::label_margin_m (+infinity when not located).
   double label_margin_m = std::numeric_limits<double>::infinity();
   /// Position uncertainty [m]: the calibrated error bound of this kind of point (grasp_point_trust.h;

@@ -86,6 +86,10 @@ struct ForeignScore {
   std::vector<std::string> corner_names;
   std::vector<double> corner_error_m;  ///< per reported corner: camera frame, truth with the same labelling
   std::vector<recognition::GraspPose> corner_poses;  ///< per reported corner, as reported (observation, evidence, trust)
+  /// Per reported corner, why it is off: its distance [m] to the nearest true corner of any name (small
+  /// while corner_error_m is large: the right place under a wrong name) and to the nearest particle of
+  /// the true drape (large: not on the cloth at all, a misplaced point).
+  std::vector<double> corner_any_truth_corner_m, corner_truth_surface_m;
   double lowest_corner_error_m = -1;   ///< the corner that hangs lowest in the truth
   double best_corner_error_m = -1;
   double max_corner_error_m = -1;
