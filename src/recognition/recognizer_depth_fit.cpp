@@ -47,6 +47,7 @@ double depthResidual(const RecognitionRun& run, std::size_t depth_image, const V
   rop.noise_sigma = 0;
   rop.render_mask = false;
   rop.render_depth = true;
+  rop.render_colour = false;
   const vision::ShadedImage img = vision::renderShaded(pc, s.triangles, rop);
   std::vector<float> diffs;
   for (int y = 0; y < img.depth.rows; ++y) {

@@ -154,6 +154,7 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       rop.noise_sigma = 0;
       rop.render_mask = true;
       rop.render_depth = true;
+      rop.render_colour = false;
       const vision::ShadedImage img = vision::renderShaded(xc, triangles, rop);
       std::vector<Vec2> proj(static_cast<size_t>(n), Vec2(-1, -1));
       std::vector<char> visible(static_cast<size_t>(n), 0);

@@ -240,6 +240,7 @@ cv::Mat TextileRecognizer::debugImage(const CameraObservation& obs, const Recogn
   rop.noise_sigma = 0;
   rop.render_depth = false;
   rop.render_mask = true;
+  rop.render_colour = false;
   const vision::ShadedImage img = vision::renderShaded(pc, sp->triangles, rop);
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(img.mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_SIMPLE);

@@ -130,9 +130,10 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
 
   // Camera-frame vertices and area-weighted vertex normals (world frame).
   std::vector<Vec3> pc(static_cast<std::size_t>(n));
-  std::vector<Vec3> nrm(static_cast<std::size_t>(n), Vec3::Zero());
+  std::vector<Vec3> nrm(o.render_colour ? static_cast<std::size_t>(n) : 0, Vec3::Zero());
   for (Index i = 0; i < n; ++i) pc[static_cast<std::size_t>(i)] = o.camera.toCamera(node3(positions, i));
-  for (const Triangle& t : triangles) {
+  for (std::size_t ti = 0; o.render_colour && ti < triangles.size(); ++ti) {
+    const Triangle& t = triangles[ti];
     const Vec3 a = node3(positions, t[0]), b = node3(positions, t[1]), c = node3(positions, t[2]);
     const Vec3 fn = (b - a).cross(c - a);
     for (Index v : t) nrm[static_cast<std::size_t>(v)] += fn;
@@ -144,7 +145,7 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
   const Vec3 light = o.light_direction.normalized();
 
   cv::RNG rng(o.seed);
-  cv::Mat3f img = makeBackground(o, rng);
+  cv::Mat3f img = o.render_colour ? makeBackground(o, rng) : cv::Mat3f();
   cv::Mat1f zbuf(h, w, std::numeric_limits<float>::infinity());
   const cv::Vec3f cloth(o.cloth_bgr[0], o.cloth_bgr[1], o.cloth_bgr[2]);
 
@@ -163,12 +164,11 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
     const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
     const int y1 = std::min(h - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
     if (x0 > x1 || y0 > y1) continue;
-    const Vec3 fnw = (Vec3(node3(positions, t[1])) - Vec3(node3(positions, t[0])))
-                         .cross(Vec3(node3(positions, t[2])) - Vec3(node3(positions, t[0])))
-                         .normalized();
+    const Vec3 fnw = o.render_colour ? Vec3((Vec3(node3(positions, t[1])) - Vec3(node3(positions, t[0])))
+                                                .cross(Vec3(node3(positions, t[2])) - Vec3(node3(positions, t[0])))
+                                                .normalized())
+                                     : Vec3::Zero();
     const double iz[3] = {1.0 / A.z(), 1.0 / B.z(), 1.0 / C.z()};
-    const Vec3* vn[3] = {&nrm[static_cast<std::size_t>(t[0])], &nrm[static_cast<std::size_t>(t[1])],
-                         &nrm[static_cast<std::size_t>(t[2])]};
     const double inv_area = 1.0 / area;
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
@@ -182,7 +182,10 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
         const float z = static_cast<float>(1.0 / sum);
         if (!(z < zbuf(y, x))) continue;
         zbuf(y, x) = z;
-        Vec3 nn = (w0 * *vn[0] + w1 * *vn[1] + w2 * *vn[2]) / sum;
+        if (!o.render_colour) continue;
+        const Vec3 n0 = nrm[static_cast<std::size_t>(t[0])], n1 = nrm[static_cast<std::size_t>(t[1])],
+                   n2 = nrm[static_cast<std::size_t>(t[2])];
+        Vec3 nn = (w0 * n0 + w1 * n1 + w2 * n2) / sum;
         if (nn.norm() < 1e-9) nn = fnw;
         nn.normalize();
         const double inten = o.ambient + o.diffuse * std::abs(nn.dot(light));
@@ -191,13 +194,15 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
     }
   }
 
-  if (o.noise_sigma > 0) {
-    cv::Mat3f noise(h, w);
-    rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_sigma);
-    img += noise;
-  }
   ShadedImage out;
-  img.convertTo(out.bgr, CV_8UC3);  // rounds and saturates
+  if (o.render_colour) {
+    if (o.noise_sigma > 0) {
+      cv::Mat3f noise(h, w);
+      rng.fill(noise, cv::RNG::NORMAL, 0.0, o.noise_sigma);
+      img += noise;
+    }
+    img.convertTo(out.bgr, CV_8UC3);  // rounds and saturates
+  }
   if (o.render_depth) {
     out.depth = cv::Mat1f(h, w);
     for (int y = 0; y < h; ++y)

@@ -123,6 +123,27 @@ TEST(ShadedRenderer, CheckerboardAndOptionalOutputs) {
   EXPECT_EQ(img.bgr.at<cv::Vec3b>(0, 32), cv::Vec3b(o.background2_bgr[0], o.background2_bgr[1], o.background2_bgr[2]));
 }
 
+TEST(ShadedRenderer, DepthOnlyGivesTheSameDepthAndMaskWithoutColour) {
+  const SyntheticMesh mesh = towel();
+  ShadedRenderOptions o = baseOptions(mesh);
+  const ShadedImage full = renderShaded(mesh.positions, mesh.triangles, o);
+  o.render_colour = false;
+  const ShadedImage depth_only = renderShaded(mesh.positions, mesh.triangles, o);
+  EXPECT_TRUE(depth_only.bgr.empty());
+  ASSERT_FALSE(full.bgr.empty());
+  ASSERT_EQ(depth_only.depth.size(), full.depth.size());
+  ASSERT_EQ(depth_only.mask.size(), full.mask.size());
+  // NaN where no textile in both: compare the masks, then the depth where there is textile.
+  EXPECT_EQ(cv::countNonZero(depth_only.mask != full.mask), 0);
+  EXPECT_GT(cv::countNonZero(full.mask), 1000);
+  cv::Mat d_only, d_full;
+  depth_only.depth.copyTo(d_only, full.mask);
+  full.depth.copyTo(d_full, full.mask);
+  d_only.setTo(0, full.mask == 0);
+  d_full.setTo(0, full.mask == 0);
+  EXPECT_EQ(maxAbsDiff(d_only, d_full), 0.0);
+}
+
 TEST(ShadedRenderer, NearerSurfaceWins) {
   // Two parallel squares facing the camera; the nearer one (red) hides the farther one (blue).
   VecX x(24);

@@ -59,10 +59,14 @@ struct ShadedRenderOptions {
   std::uint64_t seed = 1;                ///< seeds the texture and the noise
   bool render_depth = true;
   bool render_mask = true;
+  /// false: only the z-buffer (depth and mask) is made; no normals, shading, background or noise, and
+  /// `bgr` stays empty. Depth and mask are the same as with colour. For callers that need the visible
+  /// surface only (the recognizer's depth fits), where shading took most of the render.
+  bool render_colour = true;
 };
 
 struct ShadedImage {
-  cv::Mat bgr;    ///< CV_8UC3
+  cv::Mat bgr;    ///< CV_8UC3, or empty (render_colour = false)
   cv::Mat depth;  ///< CV_32FC1 [m] or empty (render_depth = false); NaN where no textile
   cv::Mat mask;   ///< CV_8UC1, 255 = textile; or empty (render_mask = false)
 };
