@@ -231,7 +231,7 @@ namespace {
 // Every image judges the answer: its own coverage by the winner, and their mean (a fused winner balances
 // the images, so the first alone may be covered less while the pair is explained well). An image covered
 // much worse than the best one contradicts the others: it halves the confidence and makes the match weak
-// for the per-point trust.
+// for the per-point trust (grasp_point_trust.h: not for points several images agree on).
 void measureImageCoverage(RecognitionRun& run, const std::vector<vision::BitMask>& matched) {
   RecognitionResult& res = run.res;
   res.image_coverage.clear();

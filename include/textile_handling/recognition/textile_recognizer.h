@@ -209,8 +209,9 @@ struct RecognitionResult {
   std::vector<double> image_coverage;   ///< per image: its own coverage by the winner
   /// Images of a fused result that the fused winner explains much worse than the best image
   /// (EvidenceOptions::contradiction_gap): views that contradict the others. Each halves the confidence;
-  /// any makes the match weak for the per-point trust (every bound doubled). A contradicting view does
-  /// not decide the answer (answer_images).
+  /// any makes the match weak for the per-point trust (every bound doubled, except for points two or
+  /// more images placed at one outline corner). A contradicting view does not decide the answer
+  /// (answer_images).
   int contradicting_images = 0;
   /// The images the answer rests on (indices into the observations, the first always among them). All
   /// of them unless some contradict. Then the images split into those the fused winner explains (within
