@@ -192,16 +192,16 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
       lowest = np.position;
     }
   }
-  auto nearestTruthCorner = [&](const Vec3& pc) {
+  // The truth's corners and particles in the camera frame, once (every reported corner is compared with
+  // all of them under every mirror).
+  std::vector<Vec3> truth_corners, truth_particles;
+  for (const auto& np : drape.mesh.textile.outline.named_points)
+    if (np.kind == "corner") truth_corners.push_back(truthAt(np.position));
+  for (Eigen::Index i = 0; i + 2 < drape.mesh.positions.size(); i += 3)
+    truth_particles.push_back(camera.toCamera(drape.mesh.positions.segment<3>(i)));
+  auto nearest = [](const std::vector<Vec3>& points, const Vec3& p) {
     double best = std::numeric_limits<double>::infinity();
-    for (const auto& np : drape.mesh.textile.outline.named_points)
-      if (np.kind == "corner") best = std::min(best, (pc - truthAt(np.position)).norm());
-    return best;
-  };
-  auto nearestTruthParticle = [&](const Vec3& pc) {
-    double best = std::numeric_limits<double>::infinity();
-    for (Eigen::Index i = 0; i + 2 < drape.mesh.positions.size(); i += 3)
-      best = std::min(best, (pc - camera.toCamera(drape.mesh.positions.segment<3>(i))).norm());
+    for (const Vec3& q : points) best = std::min(best, (p - q).norm());
     return best;
   };
   double best_hold = std::numeric_limits<double>::infinity();
@@ -226,8 +226,8 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
       c.corner_names.push_back(p.name);
       c.corner_error_m.push_back(e);
       c.corner_poses.push_back(p);
-      c.corner_any_truth_corner_m.push_back(nearestTruthCorner(p.position_camera));
-      c.corner_truth_surface_m.push_back(nearestTruthParticle(p.position_camera));
+      c.corner_any_truth_corner_m.push_back(nearest(truth_corners, p.position_camera));
+      c.corner_truth_surface_m.push_back(nearest(truth_particles, p.position_camera));
       sum += e;
       best = std::min(best, e);
       worst = std::max(worst, e);

@@ -194,10 +194,9 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
     }
     L.position = sum / L.images;
     for (const OutlineCorner& c : assigned[i]) {
-      const double d = (c.position - L.position).norm();
       if ((c.position - nearest->position).norm() <= o.agreement_m) continue;
       ++L.disagreeing_images;
-      L.disagreement_m = std::max(L.disagreement_m, d);
+      L.disagreement_m = std::max(L.disagreement_m, (c.position - L.position).norm());
     }
     L.shift_m = (L.position - predicted[i]).norm();
     for (std::size_t j = 0; j < n; ++j)

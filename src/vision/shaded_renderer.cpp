@@ -132,12 +132,12 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
   std::vector<Vec3> pc(static_cast<std::size_t>(n));
   std::vector<Vec3> nrm(o.render_colour ? static_cast<std::size_t>(n) : 0, Vec3::Zero());
   for (Index i = 0; i < n; ++i) pc[static_cast<std::size_t>(i)] = o.camera.toCamera(node3(positions, i));
-  for (std::size_t ti = 0; o.render_colour && ti < triangles.size(); ++ti) {
-    const Triangle& t = triangles[ti];
-    const Vec3 a = node3(positions, t[0]), b = node3(positions, t[1]), c = node3(positions, t[2]);
-    const Vec3 fn = (b - a).cross(c - a);
-    for (Index v : t) nrm[static_cast<std::size_t>(v)] += fn;
-  }
+  if (o.render_colour)
+    for (const Triangle& t : triangles) {
+      const Vec3 a = node3(positions, t[0]), b = node3(positions, t[1]), c = node3(positions, t[2]);
+      const Vec3 fn = (b - a).cross(c - a);
+      for (Index v : t) nrm[static_cast<std::size_t>(v)] += fn;
+    }
   for (auto& v : nrm) {
     const double len = v.norm();
     v = len > 0 ? Vec3(v / len) : Vec3::Zero();
@@ -169,6 +169,9 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
                                                 .normalized())
                                      : Vec3::Zero();
     const double iz[3] = {1.0 / A.z(), 1.0 / B.z(), 1.0 / C.z()};
+    const Vec3* vn[3] = {nullptr, nullptr, nullptr};  // vertex normals, colour only
+    if (o.render_colour)
+      for (int v = 0; v < 3; ++v) vn[v] = &nrm[static_cast<std::size_t>(t[v])];
     const double inv_area = 1.0 / area;
     for (int y = y0; y <= y1; ++y) {
       for (int x = x0; x <= x1; ++x) {
@@ -183,9 +186,7 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
         if (!(z < zbuf(y, x))) continue;
         zbuf(y, x) = z;
         if (!o.render_colour) continue;
-        const Vec3 n0 = nrm[static_cast<std::size_t>(t[0])], n1 = nrm[static_cast<std::size_t>(t[1])],
-                   n2 = nrm[static_cast<std::size_t>(t[2])];
-        Vec3 nn = (w0 * n0 + w1 * n1 + w2 * n2) / sum;
+        Vec3 nn = (w0 * *vn[0] + w1 * *vn[1] + w2 * *vn[2]) / sum;
         if (nn.norm() < 1e-9) nn = fnw;
         nn.normalize();
         const double inten = o.ambient + o.diffuse * std::abs(nn.dot(light));

@@ -135,11 +135,10 @@ double maxSafeError(const Truth& t, const RecognitionResult& r, const db::Textil
       std::any_of(group.begin(), group.end(), [&](db::MirrorKind g) { return (mapOf(g, t.hold) - r.hold_point).norm() <= 1e-3; });
   double best_all = 1e9, safe_max = -1;
   for (db::MirrorKind g : group) {
-    auto map = [&](const Vec2& p) { return mapOf(g, p); };
-    if (hold_found && (map(t.hold) - r.hold_point).norm() > 1e-3) continue;
+    if (hold_found && (mapOf(g, t.hold) - r.hold_point).norm() > 1e-3) continue;
     double all = 0, safe = -1;
     for (const GraspPose& p : r.grasp_poses) {
-      const double e = (p.position - (t.positions.segment<3>(3 * t.grid.nearestActive(map(p.textile_position))) - t.holdWorld())).norm();
+      const double e = (p.position - (t.positions.segment<3>(3 * t.grid.nearestActive(mapOf(g, p.textile_position))) - t.holdWorld())).norm();
       all = std::max(all, e);
       if (p.safe) safe = std::max(safe, e);
     }
