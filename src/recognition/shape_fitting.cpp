@@ -66,7 +66,29 @@ struct PreparedView {
   const DepthView* v = nullptr;
   cv::Mat dist, labels;
   std::vector<cv::Point> label_pixel;
+  cv::Rect mask_box;  // bounding box of the mask's pixels
 };
+
+// Pixel box (clipped to the image) of the vertices of `xc` (camera frame) in front of the camera, grown by
+// `margin` px; empty if none projects into the image.
+cv::Rect projectedBox(const VecX& xc, const vision::PinholeIntrinsics& k, int margin) {
+  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
+  for (Eigen::Index v = 0; v < xc.size() / 3; ++v) {
+    const Vec3 p = xc.segment<3>(3 * v);
+    if (!(p.z() > 0.01)) continue;
+    const double u = k.fx * p.x() / p.z() + k.cx, w = k.fy * p.y() / p.z() + k.cy;
+    x0 = std::min(x0, u);
+    x1 = std::max(x1, u);
+    y0 = std::min(y0, w);
+    y1 = std::max(y1, w);
+  }
+  if (!(x1 >= x0)) return cv::Rect();
+  const cv::Rect image(0, 0, k.width, k.height);
+  const auto clampPx = [](double v) { return static_cast<int>(std::clamp(v, -1e6, 1e6)); };
+  const cv::Rect r(cv::Point(clampPx(std::floor(x0)) - margin, clampPx(std::floor(y0)) - margin),
+                   cv::Point(clampPx(std::ceil(x1)) + margin + 1, clampPx(std::ceil(y1)) + margin + 1));
+  return r & image;
+}
 
 }  // namespace
 
@@ -120,6 +142,7 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
     for (int y = 0; y < v.mask.rows; ++y)
       for (int x = 0; x < v.mask.cols; ++x)
         if (v.mask.at<std::uint8_t>(y, x)) pv.label_pixel.emplace_back(x, y);
+    pv.mask_box = cv::boundingRect(v.mask);
     if (pv.label_pixel.size() >= 2) prepared.push_back(std::move(pv));
   }
   if (prepared.empty()) {
@@ -130,6 +153,34 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
 
   VecX x = x0;
   const double lambda = o.edge_weight, mu = o.anchor_weight;
+  // The parts of the normal equations that do not change between iterations: lambda L + mu I (+ the held
+  // vertex's spring) and its right-hand side; the sparsity pattern is analysed once.
+  Eigen::SparseMatrix<double> a_fixed(n, n);
+  Eigen::MatrixXd rhs_fixed = Eigen::MatrixXd::Zero(n, 3);
+  {
+    std::vector<Eigen::Triplet<double>> trip;
+    trip.reserve(static_cast<size_t>(n + 4 * static_cast<Index>(edges.size()) + 1));
+    for (Index i = 0; i < n; ++i) {
+      trip.emplace_back(i, i, mu);
+      rhs_fixed.row(i) = mu * x0.segment<3>(3 * i).transpose();
+    }
+    for (const auto& [i, j] : edges) {
+      trip.emplace_back(i, i, lambda);
+      trip.emplace_back(j, j, lambda);
+      trip.emplace_back(i, j, -lambda);
+      trip.emplace_back(j, i, -lambda);
+      const Vec3 e0 = x0.segment<3>(3 * i) - x0.segment<3>(3 * j);
+      rhs_fixed.row(i) += lambda * e0.transpose();
+      rhs_fixed.row(j) -= lambda * e0.transpose();
+    }
+    if (fixed_vertex >= 0) {  // a stiff spring to its matched position
+      trip.emplace_back(fixed_vertex, fixed_vertex, 1e8);
+      rhs_fixed.row(fixed_vertex) += 1e8 * x0.segment<3>(3 * fixed_vertex).transpose();
+    }
+    a_fixed.setFromTriplets(trip.begin(), trip.end());
+  }
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
+  ldlt.analyzePattern(a_fixed);
   for (int it = 0; it < o.iterations; ++it) {
     std::vector<double> w(static_cast<size_t>(n), 0.0);
     std::vector<Vec3> target_sum(static_cast<size_t>(n), Vec3::Zero());
@@ -148,9 +199,11 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       };
       VecX xc(x.size());
       for (Index i = 0; i < n; ++i) xc.segment<3>(3 * i) = view.rotation * x.segment<3>(3 * i) + view.translation;
-      // Visibility by z-buffer.
+      // Visibility by z-buffer, rendered only in the box the mesh projects into (plus a margin wider than
+      // the silhouette slack, so the distance to the rendered mesh below is that of a full render).
+      const cv::Rect box = projectedBox(xc, k, static_cast<int>(std::ceil(o.silhouette_slack_px)) + 2);
       vision::ShadedRenderOptions rop;
-      rop.intrinsics = k;
+      rop.intrinsics = vision::PinholeIntrinsics{k.fx, k.fy, k.cx - box.x, k.cy - box.y, std::max(1, box.width), std::max(1, box.height)};
       rop.noise_sigma = 0;
       rop.render_mask = true;
       rop.render_depth = true;
@@ -165,7 +218,8 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
         const double u = k.fx * p.x() / p.z() + k.cx, v = k.fy * p.y() / p.z() + k.cy;
         const int iu = static_cast<int>(std::lround(u)), iv = static_cast<int>(std::lround(v));
         if (iu < 0 || iv < 0 || iu >= k.width || iv >= k.height) continue;
-        const float zr = img.depth.at<float>(iv, iu);
+        const float zr = box.contains(cv::Point(iu, iv)) ? img.depth.at<float>(iv - box.y, iu - box.x)
+                                                          : std::numeric_limits<float>::quiet_NaN();
         if (validDepth(zr) && p.z() > zr + o.visibility_slack_m) continue;  // hidden behind the mesh
         visible[static_cast<size_t>(i)] = 1;
         proj[static_cast<size_t>(i)] = Vec2(u, v);
@@ -208,11 +262,14 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
           }
         // Only pixels clearly outside the rendered mesh (beyond silhouette_slack_px): the rasterisation of a
         // correct shape differs from the observation by a pixel along the whole outline.
-        cv::Mat rendered_far;
+        cv::Mat rendered_far;  // in `box`; every pixel outside it is farther than the slack
         cv::distanceTransform(img.mask == 0, rendered_far, cv::DIST_L2, 3);
-        for (int y = 0; y < mask.rows; y += o.uncovered_step_px)
-          for (int xpx = 0; xpx < mask.cols; xpx += o.uncovered_step_px) {
-            if (!mask.at<std::uint8_t>(y, xpx) || rendered_far.at<float>(y, xpx) <= o.silhouette_slack_px) continue;
+        const cv::Rect& mb = pv.mask_box;
+        for (int y = mb.y - mb.y % o.uncovered_step_px; y < mb.y + mb.height; y += o.uncovered_step_px)
+          for (int xpx = mb.x - mb.x % o.uncovered_step_px; xpx < mb.x + mb.width; xpx += o.uncovered_step_px) {
+            if (!mask.at<std::uint8_t>(y, xpx)) continue;
+            if (box.contains(cv::Point(xpx, y)) && rendered_far.at<float>(y - box.y, xpx - box.x) <= o.silhouette_slack_px)
+              continue;
             const float zm = depth.at<float>(y, xpx);
             if (!validDepth(zm)) continue;
             const int gx = xpx / cell, gy = y / cell;
@@ -249,31 +306,14 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
     rep.silhouette_correspondences = sil_corr;
     rep.mean_depth_residual_after_m = depth_corr > 0 ? residual / depth_corr : -1;
 
-    // Assemble and solve (W + lambda L + mu I) X = W t + lambda L X0 + mu X0, held vertex fixed.
-    std::vector<Eigen::Triplet<double>> trip;
-    trip.reserve(static_cast<size_t>(n + 4 * static_cast<Index>(edges.size())));
-    Eigen::MatrixXd rhs = Eigen::MatrixXd::Zero(n, 3);
+    // Solve (W + lambda L + mu I) X = W t + lambda L X0 + mu X0, held vertex fixed: only W and W t change.
+    Eigen::SparseMatrix<double> a = a_fixed;
+    Eigen::MatrixXd rhs = rhs_fixed;
     for (Index i = 0; i < n; ++i) {
-      const double wi = w[static_cast<size_t>(i)];
-      trip.emplace_back(i, i, wi + mu);
-      rhs.row(i) = (target_sum[static_cast<size_t>(i)] + mu * x0.segment<3>(3 * i)).transpose();
+      a.coeffRef(i, i) += w[static_cast<size_t>(i)];
+      rhs.row(i) += target_sum[static_cast<size_t>(i)].transpose();
     }
-    for (const auto& [i, j] : edges) {
-      trip.emplace_back(i, i, lambda);
-      trip.emplace_back(j, j, lambda);
-      trip.emplace_back(i, j, -lambda);
-      trip.emplace_back(j, i, -lambda);
-      const Vec3 e0 = x0.segment<3>(3 * i) - x0.segment<3>(3 * j);
-      rhs.row(i) += lambda * e0.transpose();
-      rhs.row(j) -= lambda * e0.transpose();
-    }
-    if (fixed_vertex >= 0) {  // a stiff spring to its matched position
-      trip.emplace_back(fixed_vertex, fixed_vertex, 1e8);
-      rhs.row(fixed_vertex) += 1e8 * x0.segment<3>(3 * fixed_vertex).transpose();
-    }
-    Eigen::SparseMatrix<double> a(n, n);
-    a.setFromTriplets(trip.begin(), trip.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt(a);
+    ldlt.factorize(a);
     if (ldlt.info() != Eigen::Success) {
       rep.note = "factorisation failed";
       break;

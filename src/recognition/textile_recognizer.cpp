@@ -29,6 +29,7 @@ void RecognizerOptions::validate() const {
   if (r.members < 0) bad("refinement.members must be >= 0 (0 = all)");
   if (r.max_shift_px < 0 || r.max_shift_px > 64) bad("refinement.max_shift_px must be in 0..64");
   if (!(r.step_deg > 0 && r.step_deg <= 30)) bad("refinement.step_deg must be in (0, 30]");
+  if (!(r.coarse_step_deg >= 0 && r.coarse_step_deg <= 30)) bad("refinement.coarse_step_deg must be in [0, 30]");
   if (!(r.half_range_deg >= 0 && r.half_range_deg <= 180)) bad("refinement.half_range_deg must be in [0, 180]");
   if (!(r.depth_score_slack >= 0 && r.depth_score_slack <= 1)) bad("refinement.depth_score_slack must be in [0, 1]");
   if (!(r.depth_yaw_range_deg >= 0 && r.depth_yaw_range_deg <= 180) || !(r.depth_yaw_step_deg > 0 && r.depth_yaw_step_deg <= 30))

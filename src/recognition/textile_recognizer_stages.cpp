@@ -234,6 +234,7 @@ void refineClasses(RecognitionRun& run) {
     const db::HoldPointClass& cl = li.index.classes[coarse[c].m.class_index];
     const double half = ro.half_range_deg > 0 ? ro.half_range_deg : 0.5 * std::min(li.view_step_deg, 90.0) + 1.0;
     const int steps = static_cast<int>(std::floor(half / ro.step_deg + 1e-9));
+    const int stride = std::max(1, static_cast<int>(std::lround(ro.coarse_step_deg / ro.step_deg)));
     // Cheap pass: every member's best stored base view (small shifts: the hold pixel is known).
     std::vector<MemberFit> members;
     for (std::size_t hp : cl.members) {
@@ -275,7 +276,8 @@ void refineClasses(RecognitionRun& run) {
       // Fine azimuths with the camera's projection.
       const auto shape_ptr = run.shape(li.index.hold_points[hp].simulation_id, li.index.hold_points[hp].hold);
       const TextileRecognizer::StoredShape& s = *shape_ptr;
-      for (int k = -steps; k <= steps; ++k) {
+      int best_k = 0;
+      auto evaluate = [&](int k) {
         const double a = fit.coarse_angle + k * ro.step_deg;
         double sum = 0;
         int dx = 0, dy = 0;
@@ -288,14 +290,21 @@ void refineClasses(RecognitionRun& run) {
             dy = si.dy;
           }
         }
-        // Ties: the angle nearer to the stored view (k = 0 first, then |k| increasing by scan order).
+        // Ties: the angle nearer to the stored view.
         if (sum / n > fit.score + 1e-12 || (std::abs(sum / n - fit.score) <= 1e-12 && std::abs(k) * ro.step_deg < circularDistance(fit.angle, fit.coarse_angle))) {
           fit.score = sum / n;
           fit.angle = wrapDegrees(a);
           fit.dx = dx;
           fit.dy = dy;
+          best_k = k;
         }
-      }
+      };
+      // Coarse to fine: every stride-th azimuth step, then the steps between around the best (the
+      // silhouette's IoU changes smoothly with the azimuth, so the best lies next to the best coarse step).
+      for (int k = -(steps / stride) * stride; k <= steps; k += stride) evaluate(k);
+      const int centre = best_k;
+      for (int k = std::max(-steps, centre - stride + 1); k <= std::min(steps, centre + stride - 1); ++k)
+        if (k != centre) evaluate(k);
       run.fits[c].push_back(fit);
     }
   }

@@ -132,6 +132,14 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
   std::vector<Vec3> pc(static_cast<std::size_t>(n));
   std::vector<Vec3> nrm(o.render_colour ? static_cast<std::size_t>(n) : 0, Vec3::Zero());
   for (Index i = 0; i < n; ++i) pc[static_cast<std::size_t>(i)] = o.camera.toCamera(node3(positions, i));
+  // Pixel position and inverse depth of every vertex, once (a vertex is shared by about six triangles).
+  std::vector<Vec2> px(static_cast<std::size_t>(n));
+  std::vector<double> inv_z(static_cast<std::size_t>(n));
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const Vec3& p = pc[i];
+    px[i] = Vec2(k.fx * p.x() / p.z() + k.cx, k.fy * p.y() / p.z() + k.cy);
+    inv_z[i] = 1.0 / p.z();
+  }
   if (o.render_colour)
     for (const Triangle& t : triangles) {
       const Vec3 a = node3(positions, t[0]), b = node3(positions, t[1]), c = node3(positions, t[2]);
@@ -154,9 +162,9 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
     const Vec3& B = pc[static_cast<std::size_t>(t[1])];
     const Vec3& C = pc[static_cast<std::size_t>(t[2])];
     if (A.z() <= kNear || B.z() <= kNear || C.z() <= kNear) continue;
-    const Vec2 a(k.fx * A.x() / A.z() + k.cx, k.fy * A.y() / A.z() + k.cy);
-    const Vec2 b(k.fx * B.x() / B.z() + k.cx, k.fy * B.y() / B.z() + k.cy);
-    const Vec2 c(k.fx * C.x() / C.z() + k.cx, k.fy * C.y() / C.z() + k.cy);
+    const Vec2& a = px[static_cast<std::size_t>(t[0])];
+    const Vec2& b = px[static_cast<std::size_t>(t[1])];
+    const Vec2& c = px[static_cast<std::size_t>(t[2])];
     const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
     if (std::abs(area) < 1e-12) continue;
     const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
@@ -168,7 +176,8 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
                                                 .cross(Vec3(node3(positions, t[2])) - Vec3(node3(positions, t[0])))
                                                 .normalized())
                                      : Vec3::Zero();
-    const double iz[3] = {1.0 / A.z(), 1.0 / B.z(), 1.0 / C.z()};
+    const double iz[3] = {inv_z[static_cast<std::size_t>(t[0])], inv_z[static_cast<std::size_t>(t[1])],
+                          inv_z[static_cast<std::size_t>(t[2])]};
     const Vec3* vn[3] = {nullptr, nullptr, nullptr};  // vertex normals, colour only
     if (o.render_colour)
       for (int v = 0; v < 3; ++v) vn[v] = &nrm[static_cast<std::size_t>(t[v])];

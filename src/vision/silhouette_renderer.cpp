@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <stdexcept>
 
@@ -155,68 +156,110 @@ Vec3 viewRight(double azimuth_deg) {
 
 namespace detail {
 
-void rasterTriangles(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h,
-                     std::vector<std::uint8_t>& canvas) {
-  canvas.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), 0);
+namespace {
+
+// floor / ceil of a value already clamped to a few canvas sizes (no std::floor call, no overflow).
+inline int floorInt(double v) {
+  const int i = static_cast<int>(v);
+  return i - (v < i);
+}
+inline int ceilInt(double v) {
+  const int i = static_cast<int>(v);
+  return i + (v > i);
+}
+
+// x where the segment p-q crosses the line y = yc (p.y != q.y).
+inline double crossingX(const Vec2& p, const Vec2& q, double yc) {
+  return p.x() + (q.x() - p.x()) * (yc - p.y()) / (q.y() - p.y());
+}
+
+}  // namespace
+
+void rasterTriangleRows(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h, int row0,
+                        int row1, std::uint8_t* canvas) {
+  const double lo_clamp = -2.0, hi_x = w + 2.0, hi_y = h + 2.0;
   for (const Triangle& t : tris) {
-    const Vec2& a = pts[static_cast<std::size_t>(t[0])];
-    const Vec2& b = pts[static_cast<std::size_t>(t[1])];
-    const Vec2& c = pts[static_cast<std::size_t>(t[2])];
-    const double ymin = std::min({a.y(), b.y(), c.y()}), ymax = std::max({a.y(), b.y(), c.y()});
-    const double xmin = std::min({a.x(), b.x(), c.x()}), xmax = std::max({a.x(), b.x(), c.x()});
-    if (ymax < 0 || xmax < 0 || ymin > h || xmin > w) continue;
+    // Vertices sorted by y: the long edge v0-v2 bounds one side of every row, v0-v1 or v1-v2 the other.
+    const Vec2* v0 = &pts[static_cast<std::size_t>(t[0])];
+    const Vec2* v1 = &pts[static_cast<std::size_t>(t[1])];
+    const Vec2* v2 = &pts[static_cast<std::size_t>(t[2])];
+    if (v1->y() < v0->y()) std::swap(v0, v1);
+    if (v2->y() < v1->y()) std::swap(v1, v2);
+    if (v1->y() < v0->y()) std::swap(v0, v1);
+    const double ymin = v0->y(), ymax = v2->y();
+    if (ymax < row0 || ymin > row1) continue;
+    const double xmin = std::min({v0->x(), v1->x(), v2->x()}), xmax = std::max({v0->x(), v1->x(), v2->x()});
+    if (xmax < 0 || xmin > w) continue;
     // Rows whose centre line y = r + 0.5 lies in [ymin, ymax].
-    const int r0 = std::max(0, static_cast<int>(std::ceil(ymin - 0.5)));
-    const int r1 = std::min(h - 1, static_cast<int>(std::floor(ymax - 0.5)));
-    const Vec2* v[3] = {&a, &b, &c};
+    const int r0 = std::max(row0, ceilInt(std::max(ymin - 0.5, lo_clamp)));
+    const int r1 = std::min(row1 - 1, floorInt(std::min(ymax - 0.5, hi_y)));
+    const bool flat = ymax - ymin < 1e-12;
     for (int r = r0; r <= r1; ++r) {
       const double yc = r + 0.5;
-      double xl = 1e300, xr = -1e300;
-      for (int e = 0; e < 3; ++e) {
-        const Vec2& p = *v[e];
-        const Vec2& q = *v[(e + 1) % 3];
-        const double lo = std::min(p.y(), q.y()), hi = std::max(p.y(), q.y());
-        if (yc < lo || yc > hi) continue;
-        if (hi - lo < 1e-12) {  // horizontal edge on the centre line
-          xl = std::min({xl, p.x(), q.x()});
-          xr = std::max({xr, p.x(), q.x()});
-        } else {
-          const double x = p.x() + (q.x() - p.x()) * (yc - p.y()) / (q.y() - p.y());
-          xl = std::min(xl, x);
-          xr = std::max(xr, x);
-        }
+      double xl, xr;
+      if (flat) {  // the whole triangle on the centre line
+        xl = xmin;
+        xr = xmax;
+      } else {
+        const double xa = crossingX(*v0, *v2, yc);
+        double xb;
+        if (yc <= v1->y())
+          xb = v1->y() - v0->y() < 1e-12 ? (std::abs(v0->x() - xa) > std::abs(v1->x() - xa) ? v0->x() : v1->x())
+                                         : crossingX(*v0, *v1, yc);
+        else
+          xb = v2->y() - v1->y() < 1e-12 ? (std::abs(v1->x() - xa) > std::abs(v2->x() - xa) ? v1->x() : v2->x())
+                                         : crossingX(*v1, *v2, yc);
+        xl = std::min(xa, xb);
+        xr = std::max(xa, xb);
       }
-      if (xl > xr) continue;
-      int c0 = static_cast<int>(std::ceil(xl - 0.5));
-      int c1 = static_cast<int>(std::floor(xr - 0.5));
-      if (c0 > c1) c0 = c1 = static_cast<int>(std::floor(0.5 * (xl + xr)));
+      int c0 = ceilInt(std::clamp(xl - 0.5, lo_clamp, hi_x));
+      int c1 = floorInt(std::clamp(xr - 0.5, lo_clamp, hi_x));
+      if (c0 > c1) c0 = c1 = floorInt(std::clamp(0.5 * (xl + xr), lo_clamp, hi_x));
       c0 = std::max(c0, 0);
       c1 = std::min(c1, w - 1);
       if (c0 > c1) continue;
-      std::uint8_t* rowp = canvas.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(w);
+      std::uint8_t* rowp = canvas + static_cast<std::size_t>(r - row0) * static_cast<std::size_t>(w);
       std::fill(rowp + c0, rowp + c1 + 1, std::uint8_t{1});
+    }
+  }
+}
+
+void rasterTriangles(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h,
+                     std::vector<std::uint8_t>& canvas) {
+  canvas.assign(static_cast<std::size_t>(w) * static_cast<std::size_t>(h), 0);
+  rasterTriangleRows(pts, tris, w, h, 0, h, canvas.data());
+}
+
+void downsampleCoverageRows(const std::uint8_t* canvas, int width, int y0, int y1, int x0, int x1, int s,
+                            double threshold, BitMask& m) {
+  const int cw = width * s;
+  const int need = std::max(1, static_cast<int>(std::ceil(threshold * s * s - 1e-9)));
+  for (int y = y0; y < y1; ++y) {
+    const std::uint8_t* band = canvas + static_cast<std::size_t>(y - y0) * static_cast<std::size_t>(s) * static_cast<std::size_t>(cw);
+    for (int x = x0; x < x1; ++x) {
+      int n = 0;
+      if (s == 4) {  // four 0/1 bytes per row: add the rows as words, then the bytes by a multiply
+        std::uint32_t sum = 0;
+        for (int sy = 0; sy < 4; ++sy) {
+          std::uint32_t word;
+          std::memcpy(&word, band + static_cast<std::size_t>(sy) * static_cast<std::size_t>(cw) + static_cast<std::size_t>(x) * 4, 4);
+          sum += word;
+        }
+        n = static_cast<int>((sum * 0x01010101u) >> 24);
+      } else {
+        for (int sy = 0; sy < s; ++sy) {
+          const std::uint8_t* rowp = band + static_cast<std::size_t>(sy) * static_cast<std::size_t>(cw);
+          for (int sx = 0; sx < s; ++sx) n += rowp[x * s + sx];
+        }
+      }
+      if (n >= need) m.set(x, y);
     }
   }
 }
 
 BitMask downsampleCoverage(const std::vector<std::uint8_t>& canvas, int width, int height, int s, double threshold) {
   BitMask m(width, height);
-  const int cw = width * s;
-  const int need = std::max(1, static_cast<int>(std::ceil(threshold * s * s - 1e-9)));
-  std::vector<int> colsum(static_cast<std::size_t>(width));
-  for (int y = 0; y < height; ++y) {
-    std::fill(colsum.begin(), colsum.end(), 0);
-    for (int sy = 0; sy < s; ++sy) {
-      const std::uint8_t* rowp = canvas.data() + static_cast<std::size_t>(y * s + sy) * static_cast<std::size_t>(cw);
-      for (int x = 0; x < width; ++x) {
-        int n = 0;
-        for (int sx = 0; sx < s; ++sx) n += rowp[x * s + sx];
-        colsum[static_cast<std::size_t>(x)] += n;
-      }
-    }
-    for (int x = 0; x < width; ++x)
-      if (colsum[static_cast<std::size_t>(x)] >= need) m.set(x, y);
-  }
+  downsampleCoverageRows(canvas.data(), width, 0, height, 0, width, s, threshold, m);
   return m;
 }
 
@@ -254,9 +297,24 @@ BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& tri
     }
     pts[static_cast<std::size_t>(i)] = p * static_cast<double>(s);
   }
-  std::vector<std::uint8_t> canvas;
-  detail::rasterTriangles(pts, triangles, frame.width_px * s, frame.height_px * s, canvas);
-  return detail::downsampleCoverage(canvas, frame.width_px, frame.height_px, s, frame.coverage_threshold);
+  // Only the band of canonical rows and columns the mesh can cover is cleared, rasterised and filtered.
+  double x_lo = 1e300, x_hi = -1e300, y_lo = 1e300, y_hi = -1e300;
+  for (const Vec2& p : pts) {
+    x_lo = std::min(x_lo, p.x());
+    x_hi = std::max(x_hi, p.x());
+    y_lo = std::min(y_lo, p.y());
+    y_hi = std::max(y_hi, p.y());
+  }
+  BitMask out(frame.width_px, frame.height_px);
+  const auto clampPx = [](double v, int hi) { return static_cast<int>(std::clamp(v, 0.0, static_cast<double>(hi))); };
+  const int py0 = clampPx(std::floor(y_lo / s) - 1, frame.height_px), py1 = clampPx(std::ceil(y_hi / s) + 1, frame.height_px);
+  const int px0 = clampPx(std::floor(x_lo / s) - 1, frame.width_px), px1 = clampPx(std::ceil(x_hi / s) + 1, frame.width_px);
+  if (py0 >= py1 || px0 >= px1) return out;
+  const int cw = frame.width_px * s;
+  std::vector<std::uint8_t> canvas(static_cast<std::size_t>(py1 - py0) * static_cast<std::size_t>(s) * static_cast<std::size_t>(cw), 0);
+  detail::rasterTriangleRows(pts, triangles, cw, frame.height_px * s, py0 * s, py1 * s, canvas.data());
+  detail::downsampleCoverageRows(canvas.data(), frame.width_px, py0, py1, px0, px1, s, frame.coverage_threshold, out);
+  return out;
 }
 
 BitMask renderSilhouette(const VecX& positions, const std::vector<Triangle>& triangles, Index hold_particle,

@@ -751,6 +751,9 @@ TEST_F(RecognizerTest, BadInputGivesClearErrors) {
   bad = RecognizerOptions();
   bad.match.top_k = 0;
   EXPECT_TRUE(throwsCode([&] { TextileRecognizer r2(db_path_, bad); }, RecognitionErrorCode::kInvalidOptions));
+  bad = RecognizerOptions();
+  bad.refinement.coarse_step_deg = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_TRUE(throwsCode([&] { TextileRecognizer r2(db_path_, bad); }, RecognitionErrorCode::kInvalidOptions));
   // Files that are not drape databases.
   EXPECT_TRUE(throwsCode([&] { TextileRecognizer r2(tempPath("missing.sqlite")); }, RecognitionErrorCode::kDatabase));
   const std::string junk = tempPath("junk.sqlite");

@@ -74,6 +74,69 @@ TEST(Triangles, FromTopologyCoversEveryCompleteCell) {
   EXPECT_EQ(trianglesFromTopology(ParticleTopology::fromGrid(lg)).size(), static_cast<std::size_t>(2 * 12));
 }
 
+// Golden cases of the rasterisation rule: pixel centres inside a triangle are covered, and every row whose
+// centre line crosses a triangle gets at least the pixel under the span's midpoint.
+TEST(Raster, PixelCentresInsideAndOnePixelPerCrossedRow) {
+  std::vector<std::uint8_t> canvas;
+  // Right triangle with legs of 4 px: rows cover 4, 3, 2, 1 pixels from the left.
+  detail::rasterTriangles({Vec2(0, 0), Vec2(4, 0), Vec2(0, 4)}, {{0, 1, 2}}, 6, 6, canvas);
+  const int expected_row_width[6] = {4, 3, 2, 1, 0, 0};
+  for (int r = 0; r < 6; ++r) {
+    int n = 0;
+    for (int c = 0; c < 6; ++c) n += canvas[static_cast<std::size_t>(r * 6 + c)];
+    EXPECT_EQ(n, expected_row_width[r]) << "row " << r;
+    for (int c = 0; c < expected_row_width[r]; ++c) EXPECT_EQ(canvas[static_cast<std::size_t>(r * 6 + c)], 1);
+  }
+  // A sliver 0.2 px wide between x = 2.6 and 2.8 covers no pixel centre: one pixel per row (x = 2).
+  detail::rasterTriangles({Vec2(2.6, 0), Vec2(2.8, 0), Vec2(2.7, 5)}, {{0, 1, 2}}, 6, 6, canvas);
+  for (int r = 0; r < 6; ++r)
+    for (int c = 0; c < 6; ++c) EXPECT_EQ(canvas[static_cast<std::size_t>(r * 6 + c)], r < 5 && c == 2) << r << "," << c;
+  // A flat triangle on a row's centre line (y = 1.5) leaves that row's span; one off the centre lines nothing.
+  detail::rasterTriangles({Vec2(0.2, 1.5), Vec2(3.9, 1.5), Vec2(2, 1.5)}, {{0, 1, 2}}, 6, 6, canvas);
+  int n = 0;
+  for (std::uint8_t v : canvas) n += v;
+  EXPECT_EQ(n, 4);  // row 1, centres 0.5 ... 3.5 lie in [0.2, 3.9]
+  EXPECT_EQ(canvas[6 + 0] + canvas[6 + 1] + canvas[6 + 2] + canvas[6 + 3], 4);
+  detail::rasterTriangles({Vec2(0.2, 1.2), Vec2(3.9, 1.2), Vec2(2, 1.2)}, {{0, 1, 2}}, 6, 6, canvas);
+  n = 0;
+  for (std::uint8_t v : canvas) n += v;
+  EXPECT_EQ(n, 0);
+}
+
+// renderSilhouette rasterises only the band of rows and columns the mesh covers; the mask equals the one
+// from the whole canvas, and the 4 x 4 box filter equals the plain sum.
+TEST(Raster, BandOfTheMeshEqualsTheWholeCanvas) {
+  Sheet s = flatSheet(0.40, 0.50, 0.01);
+  for (Index i = 0; i < s.x.size() / 3; ++i) {  // crumple it: folds towards the camera and sideways
+    Vec3 p = node3(s.x, i);
+    p.y() += 0.08 * std::sin(17.0 * p.x()) * std::cos(9.0 * p.z());
+    p.x() += 0.05 * std::sin(11.0 * p.z());
+    node3(s.x, i) = p;
+  }
+  const CanonicalFrame f;
+  for (double az : {0.0, 35.0, 90.0, 200.0}) {
+    const BitMask banded = renderSilhouette(s.x, s.tris, s.hold, az, SilhouetteProjection::pinhole({}, 1.6, 0.3), f);
+    // The same mapping by hand: pinhole view, whole canvas, plain box filter.
+    std::vector<Vec2> pts;
+    for (Index i = 0; i < s.x.size() / 3; ++i) pts.push_back(canonicalPixel(node3(s.x, i), s.hold, az, SilhouetteProjection::pinhole({}, 1.6, 0.3), f) * f.supersample);
+    std::vector<std::uint8_t> canvas;
+    const int ss = f.supersample;
+    detail::rasterTriangles(pts, s.tris, f.width_px * ss, f.height_px * ss, canvas);
+    BitMask whole(f.width_px, f.height_px);
+    const int need = static_cast<int>(std::ceil(f.coverage_threshold * ss * ss - 1e-9));
+    for (int y = 0; y < f.height_px; ++y)
+      for (int x = 0; x < f.width_px; ++x) {
+        int c = 0;
+        for (int sy = 0; sy < ss; ++sy)
+          for (int sx = 0; sx < ss; ++sx) c += canvas[static_cast<std::size_t>((y * ss + sy) * f.width_px * ss + x * ss + sx)];
+        if (c >= std::max(1, need)) whole.set(x, y);
+      }
+    EXPECT_GT(whole.count(), 100u) << az;
+    EXPECT_EQ(banded, whole) << "azimuth " << az;
+    EXPECT_EQ(detail::downsampleCoverage(canvas, f.width_px, f.height_px, ss, f.coverage_threshold), whole) << az;
+  }
+}
+
 TEST(SilhouetteRenderer, FlatSheetHasMetricSizeWithHoldPointAtTopCentre) {
   const Sheet s = flatSheet(0.40, 0.50, 0.01);
   const CanonicalFrame f;  // 64 x 64 px, 1/64 m per px, hold point at (32, 2)

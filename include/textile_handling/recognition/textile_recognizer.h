@@ -56,6 +56,9 @@ struct RefinementOptions {
   /// spacing + 1 deg).
   double step_deg = 1.0;
   double half_range_deg = 0.0;
+  /// The fine azimuths are searched coarse to fine: every coarse_step_deg first, then step_deg around
+  /// the best of those (coarse_step_deg <= step_deg: every step).
+  double coarse_step_deg = 3.0;
   /// Render the candidates with the camera's own pinhole projection (distance, height); false: the
   /// index's projection (orthographic for default databases).
   bool camera_projection = true;
@@ -72,7 +75,7 @@ struct RefinementOptions {
   double depth_score_slack = 0.05;
   double depth_weight_per_m = 50.0;  ///< 1 cm of depth misfit weighs like 0.5 IoU
   double depth_yaw_range_deg = 30.0;
-  double depth_yaw_step_deg = 2.0;
+  double depth_yaw_step_deg = 6.0;
   /// With depth, also try every such member mirrored front-to-back (reflectAcrossView(): the same
   /// silhouette, the other chirality; a towel grasped while lying face down hangs as the mirror image of
   /// the face-up simulation).

@@ -143,9 +143,16 @@ namespace detail {
 /// degenerate (edge-on) triangles still leave a one-pixel-wide trace.
 void rasterTriangles(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h,
                      std::vector<std::uint8_t>& canvas);
+/// The same for the canvas rows [row0, row1) only: `canvas` holds those rows (row r at (r - row0) * w).
+void rasterTriangleRows(const std::vector<Vec2>& pts, const std::vector<Triangle>& tris, int w, int h, int row0,
+                        int row1, std::uint8_t* canvas);
 /// Box-filters an (s*W) x (s*H) byte canvas to a W x H mask: pixel set when >= threshold*s*s sub-pixels.
 BitMask downsampleCoverage(const std::vector<std::uint8_t>& canvas, int width, int height, int s,
                            double threshold);
+/// The same for the mask rows [y0, y1) and columns [x0, x1) into `m` (W wide): `canvas` holds the canvas
+/// rows [s*y0, s*y1).
+void downsampleCoverageRows(const std::uint8_t* canvas, int width, int y0, int y1, int x0, int x1, int s,
+                            double threshold, BitMask& m);
 }  // namespace detail
 
 }  // namespace vision
