@@ -168,6 +168,8 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   o.shape_fit.edge_weight = finiteParam(pnh, "shape_fit/edge_weight", o.shape_fit.edge_weight, 1e-6);
   pnh.param("shape_fit/iterations", o.shape_fit.iterations, o.shape_fit.iterations);
   pnh.param("shape_fit/fuse_views", o.shape_fit.fuse_views, o.shape_fit.fuse_views);
+  o.shape_fit.reach_m = finiteParam(pnh, "shape_fit/reach_m", o.shape_fit.reach_m, 0.0);
+  pnh.param("shape_fit/rotations", o.shape_fit.rotations, o.shape_fit.rotations);
   pnh.param("fusion_views", fusion_views_, fusion_views_);
   if (fusion_views_ < 1) throw std::runtime_error("parameter ~fusion_views must be >= 1");
   fusion_window_s_ = finiteParam(pnh, "fusion_window_s", fusion_window_s_, 0.0);

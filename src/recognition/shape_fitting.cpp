@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <utility>
 
+#include <Eigen/Geometry>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #include <opencv2/imgproc.hpp>
@@ -44,6 +45,23 @@ bool sampleDepth(const cv::Mat& depth, const cv::Mat& mask, double u, double v, 
 
 Vec3 backProject(const vision::PinholeIntrinsics& k, double u, double v, double z) {
   return Vec3((u - k.cx) * z / k.fx, (v - k.cy) * z / k.fy, z);
+}
+
+// The rotation R closest to `a` (maximising tr(R^T a)), refined from the warm start `q` in place: the
+// iteration of Mueller, Bender, Chentanez and Macklin, "A robust method to extract the rotational part of
+// deformations" (MIG 2016). It needs no SVD, copes with the rank-2 covariance of a flat neighbourhood and
+// converges in one or two steps from the previous iteration's rotation.
+void extractRotation(const Mat3& a, Eigen::Quaterniond& q, int max_steps = 8) {
+  for (int step = 0; step < max_steps; ++step) {
+    const Mat3 r = q.toRotationMatrix();
+    Vec3 omega = r.col(0).cross(a.col(0)) + r.col(1).cross(a.col(1)) + r.col(2).cross(a.col(2));
+    const double align = std::abs(r.col(0).dot(a.col(0)) + r.col(1).dot(a.col(1)) + r.col(2).dot(a.col(2)));
+    omega /= align + 1e-12;
+    const double w = omega.norm();
+    if (w < 1e-9) break;
+    q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * q;
+    q.normalize();
+  }
 }
 
 }  // namespace
@@ -111,10 +129,11 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: a view's rotation must be finite and orthonormal");
   }
   if (!(o.iterations >= 1) || !(o.edge_weight > 0) || !(o.anchor_weight >= 0) || !(o.silhouette_weight >= 0) ||
-      !(o.max_correspondence_m > 0) || !(o.uncovered_step_px >= 1))
+      !(o.max_correspondence_m > 0) || !(o.uncovered_step_px >= 1) || !(o.reach_m >= 0) || !std::isfinite(o.reach_m) ||
+      !std::isfinite(o.max_correspondence_m))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions,
                            "fitShapeToDepth: invalid options (iterations, edge_weight, anchor_weight, silhouette_weight, "
-                           "max_correspondence_m or uncovered_step_px)");
+                           "max_correspondence_m, reach_m or uncovered_step_px)");
   for (const auto& t : triangles)
     for (Index v : t)
       if (v < 0 || v >= n) throw RecognitionError(RecognitionErrorCode::kInvalidGeometry, "fitShapeToDepth: triangle index out of range");
@@ -169,6 +188,7 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       trip.emplace_back(j, j, lambda);
       trip.emplace_back(i, j, -lambda);
       trip.emplace_back(j, i, -lambda);
+      if (o.rotations) continue;  // the edge term's right-hand side then turns with the vertices (below)
       const Vec3 e0 = x0.segment<3>(3 * i) - x0.segment<3>(3 * j);
       rhs_fixed.row(i) += lambda * e0.transpose();
       rhs_fixed.row(j) -= lambda * e0.transpose();
@@ -181,7 +201,17 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
   }
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> ldlt;
   ldlt.analyzePattern(a_fixed);
+  // Per-vertex rotations of the edge term (as-rigid-as-possible), warm-started from one iteration to the next.
+  std::vector<Eigen::Quaterniond> rot(o.rotations ? static_cast<size_t>(n) : 0, Eigen::Quaterniond::Identity());
   for (int it = 0; it < o.iterations; ++it) {
+    // Reach of this iteration: from o.reach_m down to max_correspondence_m (geometrically, over the first
+    // half of the iterations), with the robust scale and the silhouette limits shrinking alike, so a part
+    // of the shape far from the data is pulled in first and a near one is then fitted without being
+    // distracted by another layer.
+    const double anneal = std::min(1.0, it / std::max(1.0, 0.5 * o.iterations));
+    const double radius = std::max(o.max_correspondence_m, o.reach_m * std::pow(o.max_correspondence_m / std::max(o.reach_m, o.max_correspondence_m), anneal));
+    const double robust_scale = o.robust_scale_m * radius / o.max_correspondence_m;
+    const double silhouette_limit = std::max(3 * o.max_correspondence_m, radius);
     std::vector<double> w(static_cast<size_t>(n), 0.0);
     std::vector<Vec3> target_sum(static_cast<size_t>(n), Vec3::Zero());
     int depth_corr = 0, sil_corr = 0, n_visible = 0;
@@ -230,9 +260,9 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
           if (!sampleDepth(depth, mask, u, v, o.depth_discontinuity_m, &zm)) continue;
           const Vec3 t = backProject(k, u, v, zm);
           const double d = (t - p).norm();
-          if (d > o.max_correspondence_m) continue;
+          if (d > radius) continue;
           // Cauchy weight: a wrong layer or a stray pixel pulls little.
-          addTarget(i, 1.0 / (1.0 + (d / o.robust_scale_m) * (d / o.robust_scale_m)), t);
+          addTarget(i, 1.0 / (1.0 + (d / robust_scale) * (d / robust_scale)), t);
           residual += d;
           ++depth_corr;
         } else if (o.silhouette_weight > 0 && pv.dist.at<float>(iv, iu) > o.silhouette_slack_px) {
@@ -240,9 +270,9 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
           if (lbl <= 0 || lbl >= static_cast<int>(pv.label_pixel.size())) continue;
           const cv::Point q = pv.label_pixel[static_cast<size_t>(lbl)];
           const float zm = depth.at<float>(q.y, q.x);
-          const double z = validDepth(zm) && std::abs(zm - p.z()) <= o.max_correspondence_m ? zm : p.z();
+          const double z = validDepth(zm) && std::abs(zm - p.z()) <= radius ? zm : p.z();
           const Vec3 t = backProject(k, q.x, q.y, z);
-          if ((t - p).norm() > 3 * o.max_correspondence_m) continue;
+          if ((t - p).norm() > silhouette_limit) continue;
           addTarget(i, o.silhouette_weight, t);
           ++sil_corr;
         }
@@ -252,6 +282,16 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       // projected visible vertices.
       if (o.silhouette_weight > 0 && view_visible > 0) {
         const int cell = 8;
+        // Search rings of cells up to the reach at the mask's distance (at least 4 cells).
+        double z_sum = 0;
+        int z_n = 0;
+        for (Index i = 0; i < n; ++i)
+          if (visible[static_cast<size_t>(i)]) {
+            z_sum += xc(3 * i + 2);
+            ++z_n;
+          }
+        const double z_mean = z_n > 0 ? z_sum / z_n : 1.0;
+        const int max_ring = std::max(4, static_cast<int>(std::ceil(radius * k.fx / std::max(z_mean, 0.1) / cell)));
         const int gw = (k.width + cell - 1) / cell, gh = (k.height + cell - 1) / cell;
         std::vector<std::vector<Index>> grid(static_cast<size_t>(gw * gh));
         for (Index i = 0; i < n; ++i)
@@ -275,7 +315,7 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
             const int gx = xpx / cell, gy = y / cell;
             Index best = -1;
             double best_d2 = std::numeric_limits<double>::infinity();
-            for (int ring = 0; ring <= 4 && best < 0; ++ring)  // grow the search until a vertex is found
+            for (int ring = 0; ring <= max_ring && best < 0; ++ring)  // grow the search until a vertex is found
               for (int yy = std::max(0, gy - ring); yy <= std::min(gh - 1, gy + ring); ++yy)
                 for (int xx = std::max(0, gx - ring); xx <= std::min(gw - 1, gx + ring); ++xx)
                   for (Index i : grid[static_cast<size_t>(yy * gw + xx)]) {
@@ -287,7 +327,7 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
                   }
             if (best < 0 || best == fixed_vertex) continue;
             const Vec3 t = backProject(k, xpx, y, zm);
-            if ((t - xc.segment<3>(3 * best)).norm() > 3 * o.max_correspondence_m) continue;
+            if ((t - xc.segment<3>(3 * best)).norm() > silhouette_limit) continue;
             addTarget(best, o.silhouette_weight * o.uncovered_step_px * o.uncovered_step_px / 4.0, t);
             ++sil_corr;
           }
@@ -309,6 +349,26 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
     // Solve (W + lambda L + mu I) X = W t + lambda L X0 + mu X0, held vertex fixed: only W and W t change.
     Eigen::SparseMatrix<double> a = a_fixed;
     Eigen::MatrixXd rhs = rhs_fixed;
+    if (o.rotations) {
+      // Local step: each vertex's rotation best maps its rest edges onto its current ones,
+      // R_i = argmax tr(R^T sum_j (x_i - x_j)(x0_i - x0_j)^T); global step: edge targets (R_i + R_j)/2 e0_ij.
+      std::vector<Mat3> cov(static_cast<size_t>(n), Mat3::Zero());
+      for (const auto& [i, j] : edges) {
+        const Mat3 c = (x.segment<3>(3 * i) - x.segment<3>(3 * j)) * (x0.segment<3>(3 * i) - x0.segment<3>(3 * j)).transpose();
+        cov[static_cast<size_t>(i)] += c;
+        cov[static_cast<size_t>(j)] += c;
+      }
+      std::vector<Mat3> r(static_cast<size_t>(n));
+      for (Index i = 0; i < n; ++i) {
+        extractRotation(cov[static_cast<size_t>(i)], rot[static_cast<size_t>(i)]);
+        r[static_cast<size_t>(i)] = rot[static_cast<size_t>(i)].toRotationMatrix();
+      }
+      for (const auto& [i, j] : edges) {
+        const Vec3 e = 0.5 * (r[static_cast<size_t>(i)] + r[static_cast<size_t>(j)]) * (x0.segment<3>(3 * i) - x0.segment<3>(3 * j));
+        rhs.row(i) += lambda * e.transpose();
+        rhs.row(j) -= lambda * e.transpose();
+      }
+    }
     for (Index i = 0; i < n; ++i) {
       a.coeffRef(i, i) += w[static_cast<size_t>(i)];
       rhs.row(i) += target_sum[static_cast<size_t>(i)].transpose();

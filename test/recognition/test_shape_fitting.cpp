@@ -95,6 +95,93 @@ TEST(ShapeFitting, ADeformedShapeMovesTowardsTheMeasuredSurface) {
   EXPECT_LT((f.segment<3>(3 * guess.top) - guess.x.segment<3>(3 * guess.top)).norm(), 1e-6);
 }
 
+// The lower part of the truth swung 20 cm away from the matched shape (sideways in the image, or towards
+// the camera): the fit must reach it, since a stored shape can be that far off where a real drape folds
+// differently. `swing` is the displacement of the bottom edge [m], growing with the square of the height
+// below the top.
+Sheet swungSheet(const Vec3& swing) {
+  Sheet s = makeSheet(0.0);
+  const double top_y = s.x(3 * s.top + 1), bottom_y = s.x(s.x.size() - 2);
+  for (Eigen::Index i = 0; i < s.x.size() / 3; ++i) {
+    const double t = (s.x(3 * i + 1) - top_y) / (bottom_y - top_y);
+    s.x.segment<3>(3 * i) += t * t * swing;
+  }
+  return s;
+}
+
+// The truth with its lower right part folded by `angle` towards the camera about a hinge across the
+// corner, `hinge_m` from the corner in the flat sheet: the corner moves 2 hinge_m sin(angle / 2).
+Sheet foldedCorner(double hinge_m, double angle) {
+  Sheet s = makeSheet(0.0);
+  const int nx = 21, ny = 27;
+  const double d = 0.015, uc = 0.15, vc = (ny - 1) * d;
+  const double c = uc + vc - hinge_m * std::sqrt(2.0);  // hinge: u + v = c
+  auto at = [&](double u, double v) {  // position of a flat-sheet point (bilinear in the grid)
+    const double fi = u / d + (nx - 1) / 2.0, fj = v / d;
+    const int i = std::min(nx - 2, static_cast<int>(fi)), j = std::min(ny - 2, static_cast<int>(fj));
+    const double a = fi - i, b = fj - j;
+    auto p = [&](int ii, int jj) { return Vec3(s.x.segment<3>(3 * (jj * nx + ii))); };
+    return Vec3((1 - a) * (1 - b) * p(i, j) + a * (1 - b) * p(i + 1, j) + (1 - a) * b * p(i, j + 1) + a * b * p(i + 1, j + 1));
+  };
+  const Vec3 p1 = at(uc, c - uc), p2 = at(c - vc, vc);
+  const Vec3 axis = (p2 - p1).normalized();
+  const Index corner = nx * ny - 1;
+  Sheet best = s;
+  for (double sign : {1.0, -1.0}) {
+    const Mat3 r = Eigen::AngleAxis<Real>(sign * angle, axis).toRotationMatrix();
+    Sheet f = s;
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i) {
+        const double u = (i - (nx - 1) / 2.0) * d, v = j * d;
+        if (u + v <= c) continue;
+        f.x.segment<3>(3 * (j * nx + i)) = p1 + r * (s.x.segment<3>(3 * (j * nx + i)) - p1);
+      }
+    if (sign > 0 || f.x(3 * corner + 2) < best.x(3 * corner + 2)) best = f;
+  }
+  return best;
+}
+
+TEST(ShapeFitting, ReachesALowerPartTwentyCentimetresAway) {
+  const Sheet guess = makeSheet(0.0);
+  const Index corner = static_cast<Index>(guess.x.size() / 3) - 1;  // the bottom right corner
+  ShapeFitOptions linear;  // the edge vectors kept and the 6 cm limit from the start: a fit without reach
+  linear.reach_m = linear.max_correspondence_m;
+  ShapeFitOptions turning;  // the default reach with a rotation per vertex
+  turning.rotations = true;
+  struct Case {
+    const char* what;
+    Sheet truth;
+    ShapeFitOptions options;
+    double max_corner_error_m;
+    bool needs_reach;  // the linear fit without reach stops far short
+  };
+  // The fold keeps lengths (a flap turned as a whole) and needs the rotations; the swings stretch the
+  // sheet. Sideways the depth says nothing about where on the surface a point lies, only the outline does,
+  // hence the looser bound.
+  const std::vector<Case> cases = {
+      {"corner folded 60 deg towards the camera, hinge 20 cm away", foldedCorner(0.20, M_PI / 3), turning, 0.03, true},
+      {"lower part swung 20 cm towards the camera", swungSheet(Vec3(0, 0, -0.20)), ShapeFitOptions(), 0.03, false},
+      {"lower part swung 20 cm sideways", swungSheet(Vec3(0.20, 0, 0)), ShapeFitOptions(), 0.05, true}};
+  for (const Case& c : cases) {
+    const vision::ShadedImage m = measure(c.truth);
+    ShapeFitReport rep, rep_linear, rep_default;
+    const VecX f = fitShapeToDepth(guess.x, guess.triangles, guess.top, m.depth, m.mask, vga(), c.options, &rep);
+    const VecX g = fitShapeToDepth(guess.x, guess.triangles, guess.top, m.depth, m.mask, vga(), linear, &rep_linear);
+    const VecX h = fitShapeToDepth(guess.x, guess.triangles, guess.top, m.depth, m.mask, vga(), {}, &rep_default);
+    ASSERT_TRUE(rep.applied && rep_linear.applied && rep_default.applied) << rep.note;
+    auto cornerError = [&](const VecX& x) { return (x.segment<3>(3 * corner) - c.truth.x.segment<3>(3 * corner)).norm(); };
+    std::printf("%s: corner %.1f cm -> %.1f cm (default options %.1f, linear without reach %.1f cm), mean vertex error "
+                "%.1f -> %.1f cm, largest move %.1f cm\n",
+                c.what, 100 * cornerError(guess.x), 100 * cornerError(f), 100 * cornerError(h), 100 * cornerError(g),
+                100 * meanError(guess.x, c.truth.x), 100 * meanError(f, c.truth.x), 100 * rep.max_displacement_m);
+    EXPECT_GT(cornerError(guess.x), 0.19) << c.what;
+    EXPECT_LT(cornerError(f), c.max_corner_error_m) << c.what;
+    if (c.needs_reach) EXPECT_LT(cornerError(f), 0.5 * cornerError(g)) << c.what;
+    EXPECT_LT(meanError(f, c.truth.x), 0.6 * meanError(guess.x, c.truth.x)) << c.what;
+    EXPECT_LT((f.segment<3>(3 * guess.top) - guess.x.segment<3>(3 * guess.top)).norm(), 1e-6);
+  }
+}
+
 TEST(ShapeFitting, WithoutDepthTheShapeIsReturnedUnchanged) {
   const Sheet truth = makeSheet(0.0), guess = makeSheet(1.0);
   vision::ShadedImage m = measure(truth);
@@ -126,6 +213,9 @@ TEST(ShapeFitting, BadInputIsRejected) {
   EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, small, m.mask, vga()), RecognitionError);
   ShapeFitOptions o;
   o.iterations = 0;
+  EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), RecognitionError);
+  o = ShapeFitOptions();
+  o.reach_m = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(fitShapeToDepth(s.x, s.triangles, s.top, m.depth, m.mask, vga(), o), RecognitionError);
 }
 

@@ -58,8 +58,19 @@ struct ShapeFitOptions {
   double silhouette_weight = 1.0;
   /// A vertex is visible if it is within this distance [m] of the rendered depth on its pixel.
   double visibility_slack_m = 0.01;
-  /// Depth targets farther than this [m] from the vertex are ignored (another layer, a wrong pixel).
+  /// Depth targets farther than this [m] from the vertex are ignored (another layer, a wrong pixel)...
   double max_correspondence_m = 0.06;
+  /// ...after the first half of the iterations; the first iteration accepts targets up to reach_m, and the
+  /// limit shrinks geometrically in between (the robust scale and the silhouette limits with it), so a part
+  /// of the matched shape that hangs this far from the data can still be pulled onto it.
+  double reach_m = 0.20;
+  /// Edge term with a rotation per vertex (as-rigid-as-possible): the edges of the matched shape may turn
+  /// with the cloth at no cost, so a flap folded elsewhere moves as a whole (test
+  /// ReachesALowerPartTwentyCentimetresAway); false (default): the edge vectors themselves are kept, a
+  /// linear model that resists turning. Off by default because the free turning also lets the surface slide
+  /// along itself where only depth constrains it: on the recognizer's held-out shapes the worst grasp
+  /// points improved and the good ones got worse (docs/recognition.md, "Fitting the shape to depth").
+  bool rotations = false;
   /// Cauchy scale of the depth correspondences: weight 1 / (1 + (d / scale)^2).
   double robust_scale_m = 0.015;
   /// Depth is sampled bilinearly; four neighbours spreading more than this [m] are an edge: no sample.
