@@ -28,22 +28,12 @@ double depthResidual(const RecognitionRun& run, std::size_t depth_image, const V
   const VecX ph = placeInHoldFrame(x, s.held, run.rotationFor(base_angle, depth_image));
   VecX pc(ph.size());
   const auto& k = im.g.intrinsics;
-  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
-  for (Eigen::Index v = 0; v < ph.size() / 3; ++v) {
-    const Vec3 p = im.g.holdToCamera(ph.segment<3>(3 * v));
-    pc.segment<3>(3 * v) = p;
-    if (!(p.z() > 0.01)) continue;
-    const double u = k.fx * p.x() / p.z() + k.cx, w = k.fy * p.y() / p.z() + k.cy;
-    x0 = std::min(x0, u);
-    x1 = std::max(x1, u);
-    y0 = std::min(y0, w);
-    y1 = std::max(y1, w);
-  }
-  const int ix0 = std::max(0, static_cast<int>(std::floor(x0)) - 2), iy0 = std::max(0, static_cast<int>(std::floor(y0)) - 2);
-  const int ix1 = std::min(k.width - 1, static_cast<int>(std::ceil(x1)) + 2), iy1 = std::min(k.height - 1, static_cast<int>(std::ceil(y1)) + 2);
-  if (ix1 < ix0 || iy1 < iy0) return -1;
+  for (Eigen::Index v = 0; v < ph.size() / 3; ++v) pc.segment<3>(3 * v) = im.g.holdToCamera(ph.segment<3>(3 * v));
+  const cv::Rect box = vision::projectedBox(pc, k, 2);
+  if (box.empty()) return -1;
+  const int ix0 = box.x, iy0 = box.y;
   vision::ShadedRenderOptions rop;
-  rop.intrinsics = vision::PinholeIntrinsics{k.fx, k.fy, k.cx - ix0, k.cy - iy0, ix1 - ix0 + 1, iy1 - iy0 + 1};
+  rop.intrinsics = vision::cropIntrinsics(k, box);
   rop.noise_sigma = 0;
   rop.render_mask = false;
   rop.render_depth = true;

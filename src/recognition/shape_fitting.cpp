@@ -87,26 +87,6 @@ struct PreparedView {
   cv::Rect mask_box;  // bounding box of the mask's pixels
 };
 
-// Pixel box (clipped to the image) of the vertices of `xc` (camera frame) in front of the camera, grown by
-// `margin` px; empty if none projects into the image.
-cv::Rect projectedBox(const VecX& xc, const vision::PinholeIntrinsics& k, int margin) {
-  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
-  for (Eigen::Index v = 0; v < xc.size() / 3; ++v) {
-    const Vec3 p = xc.segment<3>(3 * v);
-    if (!(p.z() > 0.01)) continue;
-    const double u = k.fx * p.x() / p.z() + k.cx, w = k.fy * p.y() / p.z() + k.cy;
-    x0 = std::min(x0, u);
-    x1 = std::max(x1, u);
-    y0 = std::min(y0, w);
-    y1 = std::max(y1, w);
-  }
-  if (!(x1 >= x0)) return cv::Rect();
-  const cv::Rect image(0, 0, k.width, k.height);
-  const auto clampPx = [](double v) { return static_cast<int>(std::clamp(v, -1e6, 1e6)); };
-  const cv::Rect r(cv::Point(clampPx(std::floor(x0)) - margin, clampPx(std::floor(y0)) - margin),
-                   cv::Point(clampPx(std::ceil(x1)) + margin + 1, clampPx(std::ceil(y1)) + margin + 1));
-  return r & image;
-}
 
 }  // namespace
 
@@ -231,9 +211,10 @@ VecX fitShapeToDepthViews(const VecX& x0, const std::vector<vision::Triangle>& t
       for (Index i = 0; i < n; ++i) xc.segment<3>(3 * i) = view.rotation * x.segment<3>(3 * i) + view.translation;
       // Visibility by z-buffer, rendered only in the box the mesh projects into (plus a margin wider than
       // the silhouette slack, so the distance to the rendered mesh below is that of a full render).
-      const cv::Rect box = projectedBox(xc, k, static_cast<int>(std::ceil(o.silhouette_slack_px)) + 2);
+      cv::Rect box = vision::projectedBox(xc, k, static_cast<int>(std::ceil(o.silhouette_slack_px)) + 2);
+      if (box.empty()) box = cv::Rect(0, 0, 1, 1);  // nothing in view: a one-pixel render, no vertex visible
       vision::ShadedRenderOptions rop;
-      rop.intrinsics = vision::PinholeIntrinsics{k.fx, k.fy, k.cx - box.x, k.cy - box.y, std::max(1, box.width), std::max(1, box.height)};
+      rop.intrinsics = vision::cropIntrinsics(k, box);
       rop.noise_sigma = 0;
       rop.render_mask = true;
       rop.render_depth = true;

@@ -229,5 +229,27 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
   return out;
 }
 
+cv::Rect projectedBox(const VecX& camera_points, const PinholeIntrinsics& k, int margin) {
+  double x0 = 1e18, y0 = 1e18, x1 = -1e18, y1 = -1e18;
+  for (Eigen::Index v = 0; v < camera_points.size() / 3; ++v) {
+    const Vec3 p = camera_points.segment<3>(3 * v);
+    if (!(p.z() > 0.01)) continue;
+    const double u = k.fx * p.x() / p.z() + k.cx, w = k.fy * p.y() / p.z() + k.cy;
+    x0 = std::min(x0, u);
+    x1 = std::max(x1, u);
+    y0 = std::min(y0, w);
+    y1 = std::max(y1, w);
+  }
+  if (!(x1 >= x0)) return cv::Rect();
+  const auto clampPx = [](double v) { return static_cast<int>(std::clamp(v, -1e6, 1e6)); };
+  const cv::Rect r(cv::Point(clampPx(std::floor(x0)) - margin, clampPx(std::floor(y0)) - margin),
+                   cv::Point(clampPx(std::ceil(x1)) + margin + 1, clampPx(std::ceil(y1)) + margin + 1));
+  return r & cv::Rect(0, 0, k.width, k.height);
+}
+
+PinholeIntrinsics cropIntrinsics(const PinholeIntrinsics& k, const cv::Rect& box) {
+  return PinholeIntrinsics{k.fx, k.fy, k.cx - box.x, k.cy - box.y, box.width, box.height};
+}
+
 }  // namespace vision
 }  // namespace textile_handling

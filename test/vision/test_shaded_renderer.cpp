@@ -144,6 +144,37 @@ TEST(ShadedRenderer, DepthOnlyGivesTheSameDepthAndMaskWithoutColour) {
   EXPECT_EQ(maxAbsDiff(d_only, d_full), 0.0);
 }
 
+// The recognizer renders only the box a shape projects into: that crop shows what the full image shows there
+// (up to pixel centres on a triangle edge, where shifting the principal point can round the other way), and
+// nothing of the shape lies outside it.
+TEST(ShadedRenderer, CropToTheProjectedBoxMatchesTheFullRender) {
+  const SyntheticMesh mesh = towel();
+  ShadedRenderOptions o = baseOptions(mesh);
+  o.render_colour = false;
+  const ShadedImage full = renderShaded(mesh.positions, mesh.triangles, o);
+  VecX camera_points(mesh.positions.size());
+  for (Eigen::Index i = 0; i < mesh.positions.size() / 3; ++i)
+    camera_points.segment<3>(3 * i) = o.camera.toCamera(mesh.positions.segment<3>(3 * i));
+  const cv::Rect box = projectedBox(camera_points, o.intrinsics, 2);
+  ASSERT_FALSE(box.empty());
+  EXPECT_LT(box.area(), o.intrinsics.width * o.intrinsics.height / 2);
+  EXPECT_EQ(cv::countNonZero(full.mask(box)), cv::countNonZero(full.mask));  // all of the shape is inside
+  ShadedRenderOptions c = o;
+  c.intrinsics = cropIntrinsics(o.intrinsics, box);
+  c.camera = CameraPose();  // the points are already in the camera frame
+  const ShadedImage crop = renderShaded(camera_points, mesh.triangles, c);
+  ASSERT_EQ(crop.mask.size(), box.size());
+  const int differing = cv::countNonZero(crop.mask != full.mask(box));
+  EXPECT_LE(differing, cv::countNonZero(full.mask) / 200) << differing << " pixels differ";
+  // Points behind the camera only, or a box wholly outside the image: empty.
+  VecX behind = camera_points;
+  for (Eigen::Index i = 0; i < behind.size() / 3; ++i) behind(3 * i + 2) = -1.0;
+  EXPECT_TRUE(projectedBox(behind, o.intrinsics, 2).empty());
+  VecX beside = camera_points;
+  for (Eigen::Index i = 0; i < beside.size() / 3; ++i) beside(3 * i) += 50.0;
+  EXPECT_TRUE(projectedBox(beside, o.intrinsics, 2).empty());
+}
+
 TEST(ShadedRenderer, NearerSurfaceWins) {
   // Two parallel squares facing the camera; the nearer one (red) hides the farther one (blue).
   VecX x(24);

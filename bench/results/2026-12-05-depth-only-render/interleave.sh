@@ -1,10 +1,11 @@
 #!/bin/bash
-# Interleaved A/B timing of foreign_drape_bench: A and B are two builds of the package (A: the commit before
-# the depth-only renders, B: the commit that adds them), three pairs run one after the other.
+# Interleaved A/B timing of foreign_drape_bench: A and B are two builds of the package (here A: the commit
+# before the depth-only renders, B: the commit that adds them; ../2026-12-05-render-speed/ and
+# ../2026-12-05-shape-fit-reach/ use it for other pairs of commits), the pairs run one after the other.
 # Usage: A=.../foreign_drape_bench B=.../foreign_drape_bench DB=towel_test.sqlite \
-#        HELD_OUT=.../foreign_drapes.sqlite OUT=DIR bash interleave.sh
+#        HELD_OUT=.../foreign_drapes.sqlite OUT=DIR [PAIRS="1 2 3"] bash interleave.sh
 set -euo pipefail
-for k in 1 2 3; do
+for k in ${PAIRS:-1 2 3}; do
   for v in A B; do
     D=$OUT/$v$k; mkdir -p "$D"; cp "$HELD_OUT" "$D/"
     BIN=$A; [ $v = B ] && BIN=$B

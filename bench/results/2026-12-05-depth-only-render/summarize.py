@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Median processing time per recognition of each run (A = colour rendered in the depth fits, B = depth-only
-renders), the B/A ratio per interleaved pair, and whether the corner rows (errors, bounds, safe flags) are
-identical. Writes summary.csv. Usage: summarize.py (in this directory)."""
-import csv, statistics
+"""Median processing time per recognition of each run A<k>, B<k> (here A = colour rendered in the depth fits,
+B = depth-only renders) and the B/A ratio per interleaved pair (PAIRS, default "123"). Writes summary.csv.
+Usage: summarize.py (in the directory with the runs)."""
+import csv, os, statistics
 
 def medians(run, views):
     rows = [r for r in csv.DictReader(open(run + '/foreign_drapes.csv')) if r['views'] == views]
@@ -10,7 +10,7 @@ def medians(run, views):
 
 with open('summary.csv', 'w') as f:
     f.write('pair,views,a_ms,b_ms,ratio_b_over_a,a_refine_ms,b_refine_ms\n')
-    for k in '123':
+    for k in os.environ.get('PAIRS', '123'):
         for v in '12':
             (a, ar), (b, br) = medians('A' + k, v), medians('B' + k, v)
             f.write('%s,%s,%.1f,%.1f,%.3f,%.1f,%.1f\n' % (k, v, a, b, b / a, ar, br))

@@ -78,5 +78,13 @@ struct ShadedImage {
 ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& triangles,
                          const ShadedRenderOptions& options);
 
+/// Pixel box, clipped to the k.width x k.height image, that the points `camera_points` (3 per point, camera
+/// optical frame [m]) lying more than 1 cm in front of the camera project into, grown by `margin` px on
+/// every side; empty if none does. A mesh rendered with the intrinsics shifted by the box's corner and
+/// sized to it (cropIntrinsics) shows, in the box, what the full render shows there.
+cv::Rect projectedBox(const VecX& camera_points, const PinholeIntrinsics& k, int margin);
+/// The intrinsics of the crop `box` of an image with intrinsics `k`.
+PinholeIntrinsics cropIntrinsics(const PinholeIntrinsics& k, const cv::Rect& box);
+
 }  // namespace vision
 }  // namespace textile_handling
