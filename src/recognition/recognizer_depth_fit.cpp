@@ -32,13 +32,7 @@ double depthResidual(const RecognitionRun& run, std::size_t depth_image, const V
   const cv::Rect box = vision::projectedBox(pc, k, 2);
   if (box.empty()) return -1;
   const int ix0 = box.x, iy0 = box.y;
-  vision::ShadedRenderOptions rop;
-  rop.intrinsics = vision::cropIntrinsics(k, box);
-  rop.noise_sigma = 0;
-  rop.render_mask = false;
-  rop.render_depth = true;
-  rop.render_colour = false;
-  const vision::ShadedImage img = vision::renderShaded(pc, s.triangles, rop);
+  const vision::ShadedImage img = vision::renderDepthCrop(pc, s.triangles, k, box, false);
   std::vector<float> diffs;
   for (int y = 0; y < img.depth.rows; ++y) {
     const float* pd = img.depth.ptr<float>(y);

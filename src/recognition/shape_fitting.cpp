@@ -253,13 +253,7 @@ void addViewTerms(const PreparedView& pv, const VecX& x, const std::vector<visio
   // distance to the rendered mesh is that of a full render).
   cv::Rect box = vision::projectedBox(xc, k, static_cast<int>(std::ceil(o.silhouette_slack_px)) + 2);
   if (box.empty()) box = cv::Rect(0, 0, 1, 1);  // nothing in view: a one-pixel render, no vertex visible
-  vision::ShadedRenderOptions rop;
-  rop.intrinsics = vision::cropIntrinsics(k, box);
-  rop.noise_sigma = 0;
-  rop.render_mask = true;
-  rop.render_depth = true;
-  rop.render_colour = false;
-  const vision::ShadedImage img = vision::renderShaded(xc, triangles, rop);
+  const vision::ShadedImage img = vision::renderDepthCrop(xc, triangles, k, box, true);
   std::vector<Vec2> proj(static_cast<size_t>(n), Vec2(-1, -1));
   std::vector<char> visible(static_cast<size_t>(n), 0);
   int view_visible = 0;

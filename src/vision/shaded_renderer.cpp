@@ -251,5 +251,16 @@ PinholeIntrinsics cropIntrinsics(const PinholeIntrinsics& k, const cv::Rect& box
   return PinholeIntrinsics{k.fx, k.fy, k.cx - box.x, k.cy - box.y, box.width, box.height};
 }
 
+ShadedImage renderDepthCrop(const VecX& camera_points, const std::vector<Triangle>& triangles,
+                            const PinholeIntrinsics& k, const cv::Rect& box, bool with_mask) {
+  ShadedRenderOptions rop;
+  rop.intrinsics = cropIntrinsics(k, box);
+  rop.noise_sigma = 0;
+  rop.render_mask = with_mask;
+  rop.render_depth = true;
+  rop.render_colour = false;
+  return renderShaded(camera_points, triangles, rop);
+}
+
 }  // namespace vision
 }  // namespace textile_handling

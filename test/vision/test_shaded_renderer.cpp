@@ -159,10 +159,7 @@ TEST(ShadedRenderer, CropToTheProjectedBoxMatchesTheFullRender) {
   ASSERT_FALSE(box.empty());
   EXPECT_LT(box.area(), o.intrinsics.width * o.intrinsics.height / 2);
   EXPECT_EQ(cv::countNonZero(full.mask(box)), cv::countNonZero(full.mask));  // all of the shape is inside
-  ShadedRenderOptions c = o;
-  c.intrinsics = cropIntrinsics(o.intrinsics, box);
-  c.camera = CameraPose();  // the points are already in the camera frame
-  const ShadedImage crop = renderShaded(camera_points, mesh.triangles, c);
+  const ShadedImage crop = renderDepthCrop(camera_points, mesh.triangles, o.intrinsics, box, true);
   ASSERT_EQ(crop.mask.size(), box.size());
   const int differing = cv::countNonZero(crop.mask != full.mask(box));
   EXPECT_LE(differing, cv::countNonZero(full.mask) / 200) << differing << " pixels differ";

@@ -85,6 +85,10 @@ ShadedImage renderShaded(const VecX& positions, const std::vector<Triangle>& tri
 cv::Rect projectedBox(const VecX& camera_points, const PinholeIntrinsics& k, int margin);
 /// The intrinsics of the crop `box` of an image with intrinsics `k`.
 PinholeIntrinsics cropIntrinsics(const PinholeIntrinsics& k, const cv::Rect& box);
+/// The z-buffer of the camera-frame points `camera_points` (camera at the origin) rendered into the crop
+/// `box` (non-empty) of an image with intrinsics `k`: depth, and the mask if `with_mask`, no colour.
+ShadedImage renderDepthCrop(const VecX& camera_points, const std::vector<Triangle>& triangles,
+                            const PinholeIntrinsics& k, const cv::Rect& box, bool with_mask);
 
 }  // namespace vision
 }  // namespace textile_handling
