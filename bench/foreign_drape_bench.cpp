@@ -211,7 +211,8 @@ int main(int argc, char** argv) {
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms,segmentation_ms,query_ms,"
            "refine_ms,contradicting_images\n";
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
-                   "label_margin_m,located_images,uncertainty_m,safe,error_m,any_truth_corner_m,truth_surface_m,disagreeing_images,disagreement_m\n";
+                   "label_margin_m,located_images,uncertainty_m,safe,error_m,any_truth_corner_m,truth_surface_m,disagreeing_images,disagreement_m,"
+                   "tip_angle_deg,tip_roughness_m\n";
     Summary one, two;
     // Corner errors split by the observation flag, per number of images.
     std::vector<double> seen_err[3], unseen_err[3];
@@ -261,7 +262,8 @@ int main(int argc, char** argv) {
                         << (std::isfinite(gp.label_margin_m) ? gp.label_margin_m : -1) << "," << gp.located_images << ","
                         << gp.uncertainty_m << ","
                         << gp.safe << "," << s->corner_error_m[c] << "," << s->corner_any_truth_corner_m[c] << ","
-                        << s->corner_truth_surface_m[c] << "," << gp.disagreeing_images << "," << gp.disagreement_m << "\n";
+                        << s->corner_truth_surface_m[c] << "," << gp.disagreeing_images << "," << gp.disagreement_m << ","
+                        << gp.tip_angle_deg << "," << gp.tip_roughness_m << "\n";
             (ob.observed() ? seen_err[n] : unseen_err[n]).push_back(s->corner_error_m[c]);
           }
           if (s->success && s->lowest_corner_error_m >= 0)

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <tuple>
 
+#include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
 
 #include "textile_handling/recognition/recognition_errors.h"
@@ -79,6 +80,56 @@ void keepOneLowestHeight(double agreement_m, std::vector<std::vector<OutlineCorn
       if (c.lowest && c.position.z() > lowest_z + agreement_m) c.lowest = false;
 }
 
+
+// OutlineCorner::tip_depth_residual_m: the RMS residual [m] of a plane z = a X + b Y + c (X, Y lateral
+// metric coordinates) fitted to the mask's measured depth within `radius_px` of pixel (u, row); NaN with
+// fewer than 6 pixels.
+double tipDepthResidual(const GraspPointView& v, int u, int row, int radius_px) {
+  Eigen::Matrix3d AtA = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d Atb = Eigen::Vector3d::Zero();
+  std::vector<Eigen::Vector3d> pts;
+  for (int y = std::max(0, row - radius_px); y <= std::min(v.mask.rows - 1, row + radius_px); ++y)
+    for (int x = std::max(0, u - radius_px); x <= std::min(v.mask.cols - 1, u + radius_px); ++x) {
+      if ((x - u) * (x - u) + (y - row) * (y - row) > radius_px * radius_px) continue;
+      const float z = v.depth.at<float>(y, x);
+      if (v.mask.at<std::uint8_t>(y, x) == 0 || !validDepth(z)) continue;
+      pts.emplace_back((x - v.intrinsics.cx) / v.intrinsics.fx * z, (y - v.intrinsics.cy) / v.intrinsics.fy * z, z);
+    }
+  if (pts.size() < 6) return std::numeric_limits<double>::quiet_NaN();
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : pts) mean += p;
+  mean /= static_cast<double>(pts.size());
+  for (const auto& p : pts) {
+    const Eigen::Vector3d r(p.x() - mean.x(), p.y() - mean.y(), 1.0);
+    AtA += r * r.transpose();
+    Atb += r * (p.z() - mean.z());
+  }
+  const Eigen::Vector3d abc = AtA.ldlt().solve(Atb);
+  double ss = 0;
+  for (const auto& p : pts) {
+    const double e = p.z() - mean.z() - abc(0) * (p.x() - mean.x()) - abc(1) * (p.y() - mean.y()) - abc(2);
+    ss += e * e;
+  }
+  return std::sqrt(ss / pts.size());
+}
+
+// The depth noise of one view [m]: the standard deviation of independent per-pixel noise, from the median
+// absolute second difference d(x-1) - 2 d(x) + d(x+1) along rows of mask pixels (std sqrt(6) sigma for
+// independent noise; the cloth's own curvature adds little over 3 pixels). NaN without such triples.
+double depthNoiseSigma(const GraspPointView& v) {
+  std::vector<float> second;
+  for (int y = 0; y < v.mask.rows; ++y) {
+    const std::uint8_t* m = v.mask.ptr<std::uint8_t>(y);
+    const float* d = v.depth.ptr<float>(y);
+    for (int x = 1; x + 1 < v.mask.cols; ++x)
+      if (m[x - 1] && m[x] && m[x + 1] && validDepth(d[x - 1]) && validDepth(d[x]) && validDepth(d[x + 1]))
+        second.push_back(std::abs(d[x - 1] - 2 * d[x] + d[x + 1]));
+  }
+  if (second.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::nth_element(second.begin(), second.begin() + static_cast<long>(second.size() / 2), second.end());
+  return second[second.size() / 2] / (0.6745 * std::sqrt(6.0));
+}
+
 }  // namespace
 
 std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const GraspPointLocalisationOptions& o) {
@@ -100,6 +151,7 @@ std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const 
   if (n < 4 * k) return out;
   // Orientation of the contour: the sign of its area decides which turn is convex.
   const double orientation = cv::contourArea(c, true) > 0 ? 1.0 : -1.0;
+  const double noise_sigma = depthNoiseSigma(view);
   std::vector<double> angle(n, 180.0);
   std::vector<bool> convex(n, false);
   for (int i = 0; i < n; ++i) {
@@ -129,6 +181,9 @@ std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const 
     oc.angle_deg = angle[i];
     oc.position = toPosesFrame(view, c[i].x, c[i].y, z);
     if (oc.position.norm() < o.hold_exclusion_m) continue;
+    const double residual = tipDepthResidual(view, c[i].x, c[i].y, k);
+    oc.tip_depth_residual_m = std::isfinite(residual) ? residual : 0.0;
+    oc.depth_noise_m = std::isfinite(noise_sigma) ? noise_sigma : 0.0;
     out.push_back(oc);
   }
   if (!out.empty()) {
@@ -186,11 +241,13 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
     GraspPointLocation L;
     Vec3 sum = Vec3::Zero();
     bool lowest = false;
+    L.tip_roughness_m = std::numeric_limits<double>::infinity();
     for (const OutlineCorner& c : assigned[i]) {
       if ((c.position - nearest->position).norm() > o.agreement_m) continue;
       sum += c.position;
       ++L.images;
       lowest = lowest || c.lowest;
+      L.tip_roughness_m = std::min(L.tip_roughness_m, c.tipRoughness());
     }
     L.position = sum / L.images;
     for (const OutlineCorner& c : assigned[i]) {
@@ -203,6 +260,7 @@ std::vector<GraspPointLocation> locateGraspPoints(const std::vector<Vec3>& predi
       if (j != i && predicted[j].allFinite())
         L.label_margin_m = std::min(L.label_margin_m, (L.position - predicted[j]).norm() - L.shift_m);
     L.evidence = lowest ? GraspPointEvidence::kLowestPoint : GraspPointEvidence::kOutlineCorner;
+    L.tip_angle_deg = nearest->angle_deg;
     // An ambiguous long move is not made: the point keeps its prior (out[i]).
     if (L.shift_m > o.search_radius_m && L.label_margin_m < o.min_move_margin_m) continue;
     out[i] = L;

@@ -14,6 +14,7 @@ void GraspPointTrustOptions::validate() const {
   for (const double b : {model_m, surface_m, outline_corner_m, lowest_point_m})
     if (!(b > 0) || !std::isfinite(b)) bad("trust: every per-evidence bound (model_m, surface_m, outline_corner_m, lowest_point_m) must be finite and > 0");
   if (!(shift_gain >= 0) || !std::isfinite(shift_gain)) bad("trust.shift_gain must be finite and >= 0");
+  if (!(roughness_gain >= 0) || !std::isfinite(roughness_gain)) bad("trust.roughness_gain must be finite and >= 0");
   if (!(label_margin_m >= 0) || !std::isfinite(label_margin_m)) bad("trust.label_margin_m must be finite and >= 0");
   if (!(weak_score >= 0 && weak_score <= 1) || !(weak_score_agreeing >= 0 && weak_score_agreeing <= 1))
     bad("trust.weak_score and weak_score_agreeing must be in [0, 1]");
@@ -37,6 +38,7 @@ double graspPointUncertainty(const GraspPointLocation& L, double score, int cont
     u += o.shift_gain * shift;
     if (!(L.label_margin_m >= o.label_margin_m)) u += shift + std::max(0.0, L.label_margin_m);
     u += std::max(0.0, L.disagreement_m);
+    if (std::isfinite(L.tip_roughness_m)) u += o.roughness_gain * std::max(0.0, L.tip_roughness_m);
   }
   if (contradicting_images > 0 && !agreeing) score = 0;
   if (!(score >= (agreeing ? o.weak_score_agreeing : o.weak_score))) u *= 2;

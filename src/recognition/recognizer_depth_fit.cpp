@@ -257,6 +257,8 @@ void locateAndTrust(const RecognitionRun& run, const std::vector<GraspPointView>
     gp.disagreeing_images = L.disagreeing_images;
     gp.disagreement_m = L.disagreement_m;
     gp.label_margin_m = L.label_margin_m;
+    gp.tip_angle_deg = L.tip_angle_deg;
+    gp.tip_roughness_m = L.tip_roughness_m;
     if (locatedFromData(L.evidence)) {
       gp.position = L.position;
       gp.position_camera = run.imgs[0].g.holdToCamera(gp.position);

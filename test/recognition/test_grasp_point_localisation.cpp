@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include <opencv2/imgproc.hpp>
@@ -45,6 +46,22 @@ GraspPointView diamondView(bool with_depth = true, const Vec3& bottom = kBottom)
   return v;
 }
 
+// The diamond with 3 mm depth noise. With `fold_depth_m` > 0 its lowest point is the bottom of a fold seen
+// slightly from the side: in the last 3 cm, the left half of the outline is the layer behind (going back
+// up), `fold_depth_m` farther from the camera, instead of one flat sheet ending at a corner.
+GraspPointView noisyDiamondView(double fold_depth_m, std::uint64_t seed) {
+  GraspPointView v = diamondView();
+  cv::RNG rng(seed);
+  for (int y = 0; y < v.depth.rows; ++y)
+    for (int x = 0; x < v.depth.cols; ++x) {
+      if (v.mask.at<std::uint8_t>(y, x) == 0) continue;
+      const double height = -1.5 * (y - 239.5) / 525.0 - 0.3 - kBottom.z();  // above the tip [m] (camera y = -z - 0.3)
+      const bool back_layer = height < 0.03 && x < 319.5;
+      v.depth.at<float>(y, x) = static_cast<float>(1.5 + (back_layer ? fold_depth_m : 0.0) + rng.gaussian(0.003));
+    }
+  return v;
+}
+
 GraspPointLocation located(GraspPointEvidence evidence, double shift_m, double label_margin_m, int images = 1,
                            double disagreement_m = 0) {
   GraspPointLocation L;
@@ -75,6 +92,39 @@ TEST(GraspPointLocalisation, OutlineCornersOfAHangingDiamondSkipTheGrippersApex)
   EXPECT_EQ(lowest, 1);
   // Without depth there is no 3-D outline corner.
   EXPECT_TRUE(findOutlineCorners(diamondView(false), {}).empty());
+}
+
+TEST(GraspPointLocalisation, AFoldsBottomIsRoughWhereACornersTipIsFlat) {
+  // The depth noise is estimated from the image itself, so the roughness is what lies beyond it.
+  for (std::uint64_t seed : {1u, 2u, 3u}) {
+    const std::vector<OutlineCorner> flat = findOutlineCorners(noisyDiamondView(0, seed), {});
+    const std::vector<OutlineCorner> fold = findOutlineCorners(noisyDiamondView(0.02, seed), {});
+    const auto lowest = [](const std::vector<OutlineCorner>& cs) {
+      return *std::find_if(cs.begin(), cs.end(), [](const OutlineCorner& c) { return c.lowest; });
+    };
+    ASSERT_EQ(flat.size(), 3u);
+    ASSERT_FALSE(fold.empty());
+    const OutlineCorner f = lowest(flat), b = lowest(fold);
+    EXPECT_NEAR(f.depth_noise_m, 0.003, 0.0006) << seed;
+    EXPECT_NEAR(b.depth_noise_m, 0.003, 0.0006) << seed;
+    EXPECT_LT(f.tipRoughness(), 0.0007) << f.tip_depth_residual_m << " seed " << seed;
+    EXPECT_GT(b.tipRoughness(), 0.002) << b.tip_depth_residual_m << " seed " << seed;
+    // The same prediction, located at each: the corner is safe, the fold's bottom is not.
+    const std::vector<Vec3> predicted = {Vec3(0.01, 0, -0.49)};
+    const GraspPointLocation at_corner = locateGraspPoints(predicted, {true}, {false}, {noisyDiamondView(0, seed)})[0];
+    const GraspPointLocation at_fold = locateGraspPoints(predicted, {true}, {false}, {noisyDiamondView(0.02, seed)})[0];
+    ASSERT_EQ(at_corner.evidence, GraspPointEvidence::kLowestPoint);
+    ASSERT_EQ(at_fold.evidence, GraspPointEvidence::kLowestPoint);
+    EXPECT_DOUBLE_EQ(at_corner.tip_roughness_m, f.tipRoughness());
+    const GraspPointTrustOptions t;
+    EXPECT_LE(graspPointUncertainty(at_corner, 0.9, 0, t), t.safe_bound_m) << seed;
+    EXPECT_GT(graspPointUncertainty(at_fold, 0.9, 0, t), t.safe_bound_m) << seed;
+    // Two images placing it: the flatter one counts (a corner seen edge-on can look rough).
+    const GraspPointLocation both =
+        locateGraspPoints(predicted, {true}, {false}, {noisyDiamondView(0.02, seed), noisyDiamondView(0, seed + 10)})[0];
+    EXPECT_EQ(both.images, 2);
+    EXPECT_LT(both.tip_roughness_m, 0.0007);
+  }
 }
 
 TEST(GraspPointLocalisation, PredictedCornersMoveToTheDataAndUnseenPointsStay) {
@@ -193,6 +243,11 @@ TEST(GraspPointTrust, BoundsOrderTheEvidenceAndGrowWithDoubt) {
   EXPECT_GT(graspPointUncertainty(located(E::kLowestPoint, 0.01, 0.01), 0.9, 0, t), lowest);
   EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kModel, 0, inf, 0), 0.5, 0, t), 2 * model);
   EXPECT_DOUBLE_EQ(graspPointUncertainty(located(E::kLowestPoint, 0.01, inf), 0.9, 1, t), 2 * lowest);
+  // A rough tip (the depth bends there beyond the noise, as at a fold's bottom): roughness_gain per metre.
+  GraspPointLocation rough = located(E::kLowestPoint, 0.01, inf);
+  rough.tip_roughness_m = 0.002;
+  EXPECT_NEAR(graspPointUncertainty(rough, 0.9, 0, t), lowest + t.roughness_gain * 0.002, 1e-12);
+  EXPECT_GT(graspPointUncertainty(rough, 0.9, 0, t), t.safe_bound_m);
   // Another image placed it 5 cm away: its bound covers that, not safe.
   const double disputed = graspPointUncertainty(located(E::kLowestPoint, 0.01, inf, 1, 0.05), 0.9, 0, t);
   EXPECT_NEAR(disputed, lowest + 0.05, 1e-12);
@@ -213,6 +268,9 @@ TEST(GraspPointTrust, BoundsOrderTheEvidenceAndGrowWithDoubt) {
   EXPECT_THROW(bad.validate(), RecognitionError);
   bad = {};
   bad.weak_score_agreeing = 1.5;
+  EXPECT_THROW(bad.validate(), RecognitionError);
+  bad = {};
+  bad.roughness_gain = std::nan("");
   EXPECT_THROW(bad.validate(), RecognitionError);
   bad = {};
   bad.agreeing_m = -0.01;

@@ -13,6 +13,8 @@
 //       + (shift + label margin)  if the label margin < label_margin_m (another named point is nearly
 //                                 as near: the name may be its neighbour's)
 //       + disagreement            (the farthest placement of another image that did not agree)
+//       + roughness_gain * roughness  (the measured surface bends at the tip beyond the depth noise, as
+//                                 at a fold's bottom; the least over the images that placed the point)
 //   u = base(evidence)                                      (model, surface)
 // and doubles when the result's silhouette score is below `weak_score` (`weak_score_agreeing` for a point
 // several images agree on): the matched shape explains the images poorly, so its labels are doubtful. A
@@ -37,16 +39,19 @@ struct GraspPointTrustOptions {
   double outline_corner_m = 0.025;
   double lowest_point_m = 0.02;
   /// Added bound per metre the data moved a located point.
-  double shift_gain = 0.5;
+  double shift_gain = 0.25;
   /// A located point whose label margin is below this [m] may carry its neighbour's name: its bound
   /// becomes the distance to that neighbour (shift + margin) plus its base.
-  double label_margin_m = 0.05;
+  double label_margin_m = 0.04;
+  /// Added bound per metre of tip roughness (GraspPointLocation::tip_roughness_m): 1 mm of depth bending
+  /// beyond the noise adds 1 cm.
+  double roughness_gain = 10.0;
   /// Taken off the base of a point that two or more images placed at the same outline corner.
   double agreeing_m = 0.005;
   /// Results scoring below this silhouette IoU get every bound doubled ...
-  double weak_score = 0.75;
+  double weak_score = 0.6;
   /// ... or below this one for a point two or more images agree on.
-  double weak_score_agreeing = 0.65;
+  double weak_score_agreeing = 0.6;
   /// A point is safe to grasp when its bound is at most this [m].
   double safe_bound_m = 0.03;
   /// Throws RecognitionError(kInvalidOptions) naming the bad field.

@@ -71,6 +71,9 @@ struct GraspPose {
   double disagreement_m = 0;   ///< GraspPointLocation::disagreement_m
   /// GraspPointLocation::label_margin_m (+infinity when not located).
   double label_margin_m = std::numeric_limits<double>::infinity();
+  /// GraspPointLocation::tip_angle_deg and tip_roughness_m (0 when not located).
+  double tip_angle_deg = 0;
+  double tip_roughness_m = 0;
   /// Position uncertainty [m]: the calibrated error bound of this kind of point (grasp_point_trust.h;
   /// -1 = not assessed), and whether the point is safe to grasp (uncertainty within the safe bound).
   double uncertainty_m = -1;
