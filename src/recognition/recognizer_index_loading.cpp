@@ -3,6 +3,7 @@
 // that reloadIfChanged() compares, and the cached rest shapes the refinement renders.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "recognizer_state.h"
@@ -146,6 +147,15 @@ std::shared_ptr<const db::HangingDrapeDatabase> openDatabase(const std::string& 
   }
 }
 
+// Grid cells per silhouette triangle: as many as fit in a pixel of the finest loaded canonical frame
+// (1 when the mesh is coarser than the pixels).
+static int silhouetteStride(const TextileRecognizer::State& st, double spacing_m) {
+  double pixel_m = std::numeric_limits<double>::infinity();
+  for (const auto& li : st.indices) pixel_m = std::min(pixel_m, li->index.frame.metres_per_pixel);
+  if (!std::isfinite(pixel_m) || !(spacing_m > 0)) return 1;
+  return std::clamp(static_cast<int>(std::floor(pixel_m / spacing_m + 1e-9)), 1, 8);
+}
+
 std::shared_ptr<const TextileRecognizer::StoredShape> loadStoredShape(const db::HangingDrapeDatabase& db,
                                                                       const TextileRecognizer::State& st,
                                                                       std::int64_t simulation_id, const Vec2& expected_hold) {
@@ -169,6 +179,7 @@ std::shared_ptr<const TextileRecognizer::StoredShape> loadStoredShape(const db::
       s->grid = ParticleGrid::rasterize(s->textile.outline, s->record.spacing, &err);
       if (s->grid.empty() || 3 * static_cast<Eigen::Index>(s->grid.numActive()) != s->positions.size())
         fail(RecognitionErrorCode::kDatabase, "simulation " + std::to_string(simulation_id) + ": cannot rebuild its grid " + err);
+      s->silhouette_triangles = vision::coarseGridTriangles(s->grid, silhouetteStride(st, s->record.spacing));
     } catch (const RecognitionError&) {
       throw;
     } catch (const std::exception& e) {

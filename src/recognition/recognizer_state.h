@@ -82,6 +82,9 @@ struct TextileRecognizer::StoredShape {
   db::TextileRecord textile;
   VecX positions;
   std::vector<vision::Triangle> triangles;
+  /// A coarser triangulation for silhouettes (vision::coarseGridTriangles): blocks of about one pixel of
+  /// the finest loaded canonical frame.
+  std::vector<vision::Triangle> silhouette_triangles;
   ParticleGrid grid;
   Index held = -1;
 };

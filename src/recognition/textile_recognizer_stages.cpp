@@ -114,12 +114,12 @@ vision::BitMask renderFor(const RefinementOptions& ro, const VecX& x, const Text
                           const PreparedImage& im, const vision::CanonicalFrame& f) {
   if (ro.camera_projection) {
     try {
-      return vision::renderSilhouette(x, s.triangles, s.held, wrapDegrees(angle), im.g.projection(), f);
+      return vision::renderSilhouette(x, s.silhouette_triangles, s.held, wrapDegrees(angle), im.g.projection(), f);
     } catch (const std::invalid_argument&) {
       // camera inside the textile's reach: fall back to the orthographic projection
     }
   }
-  return vision::renderSilhouette(x, s.triangles, s.held, wrapDegrees(angle), vision::SilhouetteProjection::orthographic(), f);
+  return vision::renderSilhouette(x, s.silhouette_triangles, s.held, wrapDegrees(angle), vision::SilhouetteProjection::orthographic(), f);
 }
 
 void checkLoadedState(const RecognitionRun& run, const std::string& database_path) {

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "textile_handling/sim/cloth_topology.h"
+#include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/vision/vision_errors.h"
 
 namespace textile_handling {
@@ -109,6 +110,40 @@ std::vector<Triangle> trianglesFromTopology(const ParticleTopology& topo) {
     tris.push_back({p, right, right_up});
     tris.push_back({p, right_up, up});
   }
+  return tris;
+}
+
+std::vector<Triangle> coarseGridTriangles(const ParticleGrid& grid, int stride) {
+  if (stride < 1) throw InvalidArgumentError("coarseGridTriangles", "stride", "stride must be >= 1");
+  std::vector<Triangle> tris;
+  const Index rows = grid.rows(), cols = grid.cols();
+  if (rows < 2 || cols < 2) return tris;
+  // covered[i * (cols - 1) + j]: grid cell (i, j) (nodes i..i+1, j..j+1) lies in a coarse block.
+  std::vector<char> covered(static_cast<std::size_t>((rows - 1) * (cols - 1)), 0);
+  const auto cell = [&](Index a, Index b, Index c, Index d) {  // p, right, right-up, up
+    tris.push_back({a, b, c});
+    tris.push_back({a, c, d});
+  };
+  if (stride > 1) {
+    for (Index i = 0; i + stride < rows; i += stride)
+      for (Index j = 0; j + stride < cols; j += stride) {
+        bool full = true;
+        for (Index a = 0; a <= stride && full; ++a)
+          for (Index b = 0; b <= stride && full; ++b) full = grid.active(i + a, j + b);
+        if (!full) continue;
+        cell(grid.activeIndex(i, j), grid.activeIndex(i, j + stride), grid.activeIndex(i + stride, j + stride),
+             grid.activeIndex(i + stride, j));
+        for (Index a = 0; a < stride; ++a)
+          for (Index b = 0; b < stride; ++b) covered[static_cast<std::size_t>((i + a) * (cols - 1) + j + b)] = 1;
+      }
+  }
+  for (Index i = 0; i + 1 < rows; ++i)
+    for (Index j = 0; j + 1 < cols; ++j) {
+      if (covered[static_cast<std::size_t>(i * (cols - 1) + j)]) continue;
+      const Index p = grid.activeIndex(i, j), r = grid.activeIndex(i, j + 1), ru = grid.activeIndex(i + 1, j + 1),
+                  u = grid.activeIndex(i + 1, j);
+      if (p >= 0 && r >= 0 && ru >= 0 && u >= 0) cell(p, r, ru, u);
+    }
   return tris;
 }
 

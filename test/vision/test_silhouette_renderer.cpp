@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -72,6 +74,70 @@ TEST(Triangles, FromTopologyCoversEveryCompleteCell) {
   const ParticleGrid lg = ParticleGrid::rasterize(l, 0.05, &err);
   ASSERT_FALSE(lg.empty()) << err;
   EXPECT_EQ(trianglesFromTopology(ParticleTopology::fromGrid(lg)).size(), static_cast<std::size_t>(2 * 12));
+}
+
+// The coarse triangulation covers exactly the fine one's area (no gaps, no overlap, nothing outside a
+// concave outline), stride 1 is the fine one, and a curved hanging sheet looks the same in the canonical
+// frame with about a pixel per block.
+TEST(Triangles, CoarseGridTrianglesCoverTheSameSheet) {
+  std::string err;
+  const auto flatArea = [](const ParticleGrid& g, const std::vector<Triangle>& tris) {
+    double area = 0;
+    for (const auto& t : tris) {
+      const Vec2 a = g.activePosition(t[0]), b = g.activePosition(t[1]), c = g.activePosition(t[2]);
+      const double s = 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+      EXPECT_GT(s, 0);
+      area += s;
+    }
+    return area;
+  };
+  TextileOutline l;  // concave: an L whose notch cuts blocks in half
+  l.outline = {Vec2(0, 0), Vec2(0.33, 0), Vec2(0.33, 0.13), Vec2(0.17, 0.13), Vec2(0.17, 0.25), Vec2(0, 0.25)};
+  for (const TextileOutline& t : {rectangle(0.31, 0.2), l}) {
+    const ParticleGrid g = ParticleGrid::rasterize(t, 0.01, &err);
+    ASSERT_FALSE(g.empty()) << err;
+    const auto fine = trianglesFromTopology(ParticleTopology::fromGrid(g));
+    const auto one = coarseGridTriangles(g, 1);
+    EXPECT_EQ(one.size(), fine.size());
+    EXPECT_NEAR(flatArea(g, one), flatArea(g, fine), 1e-12);
+    for (int stride : {2, 3, 5}) {
+      const auto coarse = coarseGridTriangles(g, stride);
+      EXPECT_LT(coarse.size(), fine.size() / 2) << stride;
+      EXPECT_NEAR(flatArea(g, coarse), flatArea(g, fine), 1e-12) << stride;  // positive areas summing up: no overlap
+      for (const auto& tri : coarse) {
+        const Vec2 centroid = (g.activePosition(tri[0]) + g.activePosition(tri[1]) + g.activePosition(tri[2])) / 3.0;
+        EXPECT_TRUE(pointInPolygon(t.outline, centroid, 0.0)) << stride;
+      }
+    }
+  }
+  // A 0.64 x 0.46 m towel at d = 2/3 cm bent into a U (a half cylinder of radius 8 cm, the sides straight):
+  // 1.6 cm pixels, blocks of 2 x 2 cells. The silhouettes differ by at most a few edge pixels.
+  const double w = 0.64, h = 0.46, d = 0.02 / 3;
+  const ParticleGrid g = ParticleGrid::rasterize(rectangle(w, h), d, &err);
+  ASSERT_FALSE(g.empty()) << err;
+  VecX x(3 * g.numActive());
+  for (Index i = 0; i < g.numActive(); ++i) {
+    const Vec2 p = g.activePosition(i);
+    const double u = p.x() - 0.5 * w, R = 0.08, arc = R * M_PI / 2;  // a U: the arc, then straight back
+    const double X = std::abs(u) <= arc ? R * std::sin(u / R) : std::copysign(R, u);
+    const double Y = std::abs(u) <= arc ? R * std::cos(u / R) : -(std::abs(u) - arc);
+    node3(x, i) = Vec3(X, Y,
+                       1.0 - (h - p.y()));
+  }
+  const auto fine = trianglesFromTopology(ParticleTopology::fromGrid(g));
+  const auto coarse = coarseGridTriangles(g, 2);
+  EXPECT_LT(coarse.size(), fine.size() / 3);
+  for (double az : {0.0, 30.0, 90.0, 135.0}) {
+    const BitMask a = renderSilhouette(x, fine, Vec3(0, 0.08, 1.0), az);
+    const BitMask b = renderSilhouette(x, coarse, Vec3(0, 0.08, 1.0), az);
+    int differ = 0;
+    for (int r = 0; r < a.height(); ++r)
+      for (int c = 0; c < a.width(); ++c) differ += a.get(c, r) != b.get(c, r);
+    std::cout << "azimuth " << az << ": " << differ << " of " << a.count() << " silhouette pixels differ\n";
+    EXPECT_LE(differ, 2) << "azimuth " << az << ", " << a.count() << " pixels";
+    EXPECT_GT(a.count(), 200);
+  }
+  EXPECT_THROW(coarseGridTriangles(g, 0), std::invalid_argument);
 }
 
 // Golden cases of the rasterisation rule: pixel centres inside a triangle are covered, and every row whose

@@ -24,6 +24,7 @@
 namespace textile_handling {
 
 struct ParticleTopology;
+class ParticleGrid;
 
 namespace vision {
 
@@ -33,6 +34,16 @@ using Triangle = std::array<Index, 3>;
 /// right neighbour's up neighbour, p's up neighbour) gives the two triangles (p, right, right-up) and
 /// (p, right-up, up). Cells with a missing corner (or inconsistent neighbours) are skipped.
 std::vector<Triangle> trianglesFromTopology(const ParticleTopology& topology);
+
+/// A coarser triangulation of the same sheet for silhouettes: blocks of stride x stride grid cells whose
+/// (stride + 1)^2 nodes are all active become one cell (two triangles over its four corner nodes); every
+/// complete grid cell outside such a block keeps its own two triangles, so the sheet's parameter domain
+/// is covered exactly as by trianglesFromTopology() on the grid's 4-neighbour topology. Vertex indices are
+/// the grid's compact indices. Why: a silhouette at about a pixel per `stride` cells looks the same (the
+/// chord of a block bends off the surface by stride^2 d^2 / (8 R) for a bend of radius R), and the
+/// rasteriser's cost is mostly per triangle. stride 1 gives the full triangulation. Throws
+/// InvalidArgumentError for stride < 1.
+std::vector<Triangle> coarseGridTriangles(const ParticleGrid& grid, int stride);
 
 /// Canonical silhouette window. Default: 64 x 64 px covering 1.0 x 1.0 m below the hold point
 /// (1/64 m per pixel), hold point 2 px below the top edge.
