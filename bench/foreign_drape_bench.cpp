@@ -3,7 +3,7 @@
 //
 //   foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth]
 //                       [--workers N] [--variants NAME,NAME,...] [--max-time S] [--no-localisation]
-//                       [--search-radius M]
+//                       [--search-radius M] [--odd-pairs]
 //
 // Builds (or resumes) the held-out drapes into DIR/foreign_drapes.sqlite: N hold points per variant
 // anywhere on the towel (default 6; variants: Choi-Ko; two materials; d = 0.8 cm with self-collision and
@@ -16,7 +16,10 @@
 // DIR/foreign_corners.csv (one row per reported corner: observation, evidence, uncertainty, safe flag and
 // error); DIR/foreign_calibration.{csv,png} (corner error against reported uncertainty);
 // DIR/foreign_one_vs_two.png (per drape and azimuth: one image's error against two images');
-// headline figures on stdout. A benchmark, not a test: nothing asserts. Set OMP_WAIT_POLICY=passive.
+// headline figures on stdout. --odd-pairs: also, per drape, one pair whose second image shows another
+// drape (a hold point >= 10 cm away under every mirror): a view that really contradicts the first, rows
+// in DIR/foreign_odd_pairs.csv, to set the contradiction test against the consistent pairs' coverage gaps
+// (column coverage_gap of foreign_drapes.csv). A benchmark, not a test: nothing asserts. Set OMP_WAIT_POLICY=passive.
 // Exit status: 0 done, 2 usage, 4 outputs cannot be written, 5 unexpected error.
 #include <algorithm>
 #include <cmath>
@@ -47,12 +50,13 @@ struct Options {
   bool depth = true;
   bool localisation = true;       ///< --no-localisation: corners stay where the matched shape puts them
   double search_radius_m = -1;    ///< --search-radius M: GraspPointLocalisationOptions::search_radius_m (< 0 = default)
+  bool odd_pairs = false;         ///< --odd-pairs: also pairs whose second image shows another drape
 };
 
 int usage(const std::string& problem) {
   std::cerr << "foreign_drape_bench: " << problem
             << "\nusage: foreign_drape_bench --database DB [--out DIR] [--holds N] [--views N] [--seed S] [--no-depth] "
-               "[--workers N] [--variants NAME,...] [--max-time S] [--no-localisation] [--search-radius M]\n";
+               "[--workers N] [--variants NAME,...] [--max-time S] [--no-localisation] [--search-radius M] [--odd-pairs]\n";
   return 2;
 }
 
@@ -142,6 +146,70 @@ void writeCalibration(const std::string& out, const Summary& one, const Summary&
     std::cerr << "foreign_drape_bench: calibration chart: " << err << "\n";
 }
 
+// One recognition of `views` (the first image's camera is the result's frame), scored against `d`.
+bench::ForeignScore recogniseViews(const recognition::TextileRecognizer& rec, const bench::ForeignDrape& d,
+                                   const std::vector<bench::ForeignView>& views) {
+  std::vector<recognition::CameraObservation> obs;
+  for (const auto& v : views) obs.push_back(v.observation);
+  bench::ForeignScore s;
+  try {
+    s = bench::scoreRecognition(d, views.front().camera, obs.size() == 1 ? rec.recognize(obs.front()) : rec.recognize(obs));
+  } catch (const recognition::RecognitionError& e) {
+    s.success = false;
+    s.reason = e.what();
+  }
+  return s;
+}
+
+// --odd-pairs: per drape, the first image of a random azimuth fused with an image of the next drape in
+// the list whose hold point lies >= 10 cm from this one's under every mirror (after the same 90 degree
+// turn). Rows in DIR/foreign_odd_pairs.csv; the flag rate on stdout.
+void runOddPairs(const Options& o, const std::vector<bench::ForeignDrape>& drapes, const recognition::TextileRecognizer& rec,
+                 const bench::ForeignViewOptions& vo) {
+  std::ofstream csv(o.out + "/foreign_odd_pairs.csv");
+  csv << "variant,hold_x_m,hold_y_m,other_variant,other_hold_x_m,other_hold_y_m,hold_distance_m,azimuth_deg,success,reason,"
+         "hold_error_m,one_image_hold_error_m,contradicting_images,coverage_gap,confidence,safe_corners,safe_within_3cm\n";
+  std::mt19937_64 rng(o.seed + 7);
+  std::uniform_real_distribution<double> az(0.0, 360.0);
+  int pairs = 0, flagged = 0, held = 0, held_one = 0;
+  for (std::size_t i = 0; i < drapes.size(); ++i) {
+    const bench::ForeignDrape& d = drapes[i];
+    const bench::ForeignDrape* other = nullptr;
+    double distance = 0;
+    for (std::size_t k = 1; k < drapes.size() && !other; ++k) {
+      distance = bench::mirrorDistance(d, drapes[(i + k) % drapes.size()].hold);
+      if (distance >= 0.10) other = &drapes[(i + k) % drapes.size()];
+    }
+    if (!other) continue;
+    const double a = az(rng);
+    const std::uint64_t seed = rng();
+    std::vector<bench::ForeignView> pair = {bench::renderForeignView(d, a, vo, seed),
+                                            bench::renderForeignView(*other, a + vo.turn_deg, vo, seed + 1)};
+    pair[0].observation.relative_view_deg = 0.0;
+    pair[1].observation.relative_view_deg = vo.turn_deg;
+    const bench::ForeignScore one = recogniseViews(rec, d, {pair[0]}), two = recogniseViews(rec, d, pair);
+    int safe = 0, safe_within = 0;
+    for (std::size_t c = 0; c < two.corner_poses.size(); ++c)
+      if (two.corner_poses[c].safe) {
+        ++safe;
+        safe_within += two.corner_error_m[c] <= 0.03;
+      }
+    std::string reason = two.reason;
+    std::replace(reason.begin(), reason.end(), '"', '\'');
+    csv << d.variant << "," << d.hold.x() << "," << d.hold.y() << "," << other->variant << "," << other->hold.x() << ","
+        << other->hold.y() << "," << distance << "," << a << "," << two.success << ",\"" << reason << "\","
+        << two.hold_error_m << "," << one.hold_error_m << "," << two.contradicting_images << "," << two.coverage_gap << ","
+        << two.confidence << "," << safe << "," << safe_within << "\n";
+    ++pairs;
+    flagged += two.success && two.contradicting_images > 0;
+    held += two.success && two.hold_error_m >= 0 && two.hold_error_m <= 0.05;
+    held_one += one.success && one.hold_error_m >= 0 && one.hold_error_m <= 0.05;
+  }
+  std::printf("odd pairs (second image of another drape): %d, flagged contradicting in %s; hold point within 5 cm of the "
+              "first image's drape in %s (the first image alone: %s)\n",
+              pairs, pct(flagged, pairs).c_str(), pct(held, pairs).c_str(), pct(held_one, pairs).c_str());
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -154,6 +222,10 @@ int main(int argc, char** argv) {
     }
     if (a == "--no-localisation") {
       o.localisation = false;
+      continue;
+    }
+    if (a == "--odd-pairs") {
+      o.odd_pairs = true;
       continue;
     }
     if (i + 1 >= argc) return usage(a + " needs a value");
@@ -209,7 +281,7 @@ int main(int argc, char** argv) {
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms,segmentation_ms,query_ms,"
-           "refine_ms,contradicting_images\n";
+           "refine_ms,contradicting_images,coverage_gap\n";
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
                    "label_margin_m,located_images,uncertainty_m,safe,error_m,any_truth_corner_m,truth_surface_m,disagreeing_images,disagreement_m,"
                    "tip_angle_deg,tip_roughness_m\n";
@@ -220,16 +292,7 @@ int main(int argc, char** argv) {
     std::mt19937_64 rng(o.seed + 99);
     std::uniform_real_distribution<double> az(0.0, 360.0);
     auto recognise = [&](const bench::ForeignDrape& d, const std::vector<bench::ForeignView>& views) {
-      std::vector<recognition::CameraObservation> obs;
-      for (const auto& v : views) obs.push_back(v.observation);
-      bench::ForeignScore s;
-      try {
-        s = bench::scoreRecognition(d, views.front().camera, obs.size() == 1 ? rec.recognize(obs.front()) : rec.recognize(obs));
-      } catch (const recognition::RecognitionError& e) {
-        s.success = false;
-        s.reason = e.what();
-      }
-      return s;
+      return recogniseViews(rec, d, views);
     };
     for (const bench::ForeignDrape& d : drapes) {
       for (int k = 0; k < o.views; ++k) {
@@ -252,7 +315,7 @@ int main(int argc, char** argv) {
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "," << s->segmentation_ms << "," << s->query_ms << ","
-              << s->refine_ms << "," << s->contradicting_images << "\n";
+              << s->refine_ms << "," << s->contradicting_images << "," << s->coverage_gap << "\n";
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
             const recognition::GraspPose& gp = s->corner_poses[c];
             const auto& ob = gp.observation;
@@ -283,6 +346,7 @@ int main(int argc, char** argv) {
     }
     printSummary("one image", one);
     printSummary("two images", two);
+    if (o.odd_pairs) runOddPairs(o, drapes, rec, vo);
     for (int n = 1; n <= 2; ++n) {
       auto within = [](const std::vector<double>& v) {
         return static_cast<int>(std::count_if(v.begin(), v.end(), [](double e) { return e <= 0.03; }));

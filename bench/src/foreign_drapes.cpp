@@ -163,6 +163,13 @@ ForeignView renderForeignView(const ForeignDrape& drape, double azimuth_deg, con
   return v;
 }
 
+double mirrorDistance(const ForeignDrape& drape, const Vec2& p) {
+  const db::TextileSymmetry sym = db::detectSymmetry(drape.mesh.textile.outline, 1e-6);
+  double best = (p - drape.hold).norm();
+  for (db::MirrorKind m : sym.mirrors()) best = std::min(best, (sym.apply(m, p) - drape.hold).norm());
+  return best;
+}
+
 ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPose& camera,
                               const recognition::RecognitionResult& r) {
   ForeignScore s;
@@ -170,6 +177,10 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   s.score = r.score;
   s.confidence = r.confidence;
   s.contradicting_images = r.contradicting_images;
+  if (r.contradicting_images > 0) s.coverage_gap = -1;  // unless the answer still rests on every image:
+  if (r.image_coverage.size() >= 2)
+    s.coverage_gap = *std::max_element(r.image_coverage.begin(), r.image_coverage.end()) -
+                     *std::min_element(r.image_coverage.begin(), r.image_coverage.end());
   s.processing_ms = r.total_ms;
   s.segmentation_ms = r.segmentation_ms;
   s.query_ms = r.query_ms;

@@ -95,6 +95,9 @@ struct ForeignScore {
   double max_corner_error_m = -1;
   double score = 0, confidence = 0;
   int contradicting_images = 0;
+  /// Best minus worst image coverage by the winner (RecognitionResult::image_coverage); 0 for one image,
+  /// -1 when the answer rests on fewer images than were given (a contradicting one left out).
+  double coverage_gap = 0;
   double processing_ms = 0;
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0;  ///< the recognizer's stage times (refine includes the depth fit)
 };
@@ -105,6 +108,10 @@ struct ForeignScore {
 /// (among mirrors within 1 cm of the best hold error, the one with the smallest mean corner error).
 ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPose& camera,
                               const recognition::RecognitionResult& result);
+
+/// Distance [m] from `drape`'s hold point to the nearest mirror image of textile point `p` (the towel's
+/// symmetries).
+double mirrorDistance(const ForeignDrape& drape, const Vec2& p);
 
 }  // namespace bench
 }  // namespace textile_handling
