@@ -168,7 +168,7 @@ void runOddPairs(const Options& o, const std::vector<bench::ForeignDrape>& drape
                  const bench::ForeignViewOptions& vo) {
   std::ofstream csv(o.out + "/foreign_odd_pairs.csv");
   csv << "variant,hold_x_m,hold_y_m,other_variant,other_hold_x_m,other_hold_y_m,hold_distance_m,azimuth_deg,success,reason,"
-         "hold_error_m,one_image_hold_error_m,contradicting_images,coverage_gap,confidence,safe_corners,safe_within_3cm\n";
+         "hold_error_m,one_image_hold_error_m,contradicting_images,coverage_gap,max_image_regret,confidence,safe_corners,safe_within_3cm\n";
   std::mt19937_64 rng(o.seed + 7);
   std::uniform_real_distribution<double> az(0.0, 360.0);
   int pairs = 0, flagged = 0, held = 0, held_one = 0;
@@ -198,7 +198,7 @@ void runOddPairs(const Options& o, const std::vector<bench::ForeignDrape>& drape
     std::replace(reason.begin(), reason.end(), '"', '\'');
     csv << d.variant << "," << d.hold.x() << "," << d.hold.y() << "," << other->variant << "," << other->hold.x() << ","
         << other->hold.y() << "," << distance << "," << a << "," << two.success << ",\"" << reason << "\","
-        << two.hold_error_m << "," << one.hold_error_m << "," << two.contradicting_images << "," << two.coverage_gap << ","
+        << two.hold_error_m << "," << one.hold_error_m << "," << two.contradicting_images << "," << two.coverage_gap << "," << two.max_image_regret << ","
         << two.confidence << "," << safe << "," << safe_within << "\n";
     ++pairs;
     flagged += two.success && two.contradicting_images > 0;
@@ -281,7 +281,7 @@ int main(int argc, char** argv) {
     vo.depth = o.depth;
     csv << "variant,rest_reached,hold_x_m,hold_y_m,views,azimuth_deg,success,reason,hold_error_m,lowest_corner_error_m,"
            "best_corner_error_m,max_corner_error_m,mean_corner_error_m,score,confidence,processing_ms,segmentation_ms,query_ms,"
-           "refine_ms,contradicting_images,coverage_gap\n";
+           "refine_ms,contradicting_images,coverage_gap,max_image_regret\n";
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
                    "label_margin_m,located_images,uncertainty_m,safe,error_m,any_truth_corner_m,truth_surface_m,disagreeing_images,disagreement_m,"
                    "tip_angle_deg,tip_roughness_m\n";
@@ -315,7 +315,7 @@ int main(int argc, char** argv) {
               << reason << "\"," << s->hold_error_m << "," << s->lowest_corner_error_m << "," << s->best_corner_error_m << ","
               << s->max_corner_error_m << "," << (s->corner_error_m.empty() ? -1 : mean) << "," << s->score << ","
               << s->confidence << "," << s->processing_ms << "," << s->segmentation_ms << "," << s->query_ms << ","
-              << s->refine_ms << "," << s->contradicting_images << "," << s->coverage_gap << "\n";
+              << s->refine_ms << "," << s->contradicting_images << "," << s->coverage_gap << "," << s->max_image_regret << "\n";
           for (std::size_t c = 0; c < s->corner_error_m.size(); ++c) {
             const recognition::GraspPose& gp = s->corner_poses[c];
             const auto& ob = gp.observation;

@@ -177,6 +177,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   s.score = r.score;
   s.confidence = r.confidence;
   s.contradicting_images = r.contradicting_images;
+  for (double g : r.image_regret) s.max_image_regret = std::max(s.max_image_regret, g);
   if (r.contradicting_images > 0) s.coverage_gap = -1;  // unless the answer still rests on every image:
   if (r.image_coverage.size() >= 2)
     s.coverage_gap = *std::max_element(r.image_coverage.begin(), r.image_coverage.end()) -

@@ -184,6 +184,7 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   o.evidence.max_lost_view_fraction =
       finiteParam(pnh, "evidence/max_lost_view_fraction", o.evidence.max_lost_view_fraction, 0.0);
   o.evidence.contradiction_gap = finiteParam(pnh, "evidence/contradiction_gap", o.evidence.contradiction_gap, 0.0);
+  o.evidence.contradiction_regret = finiteParam(pnh, "evidence/contradiction_regret", o.evidence.contradiction_regret, 0.0);
   pnh.param("evidence/ignore_unbuilt_textiles", o.evidence.ignore_unbuilt_textiles, o.evidence.ignore_unbuilt_textiles);
   try {
     o.validate();

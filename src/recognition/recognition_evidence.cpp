@@ -22,6 +22,20 @@ void EvidenceOptions::validate() const {
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.max_lost_view_fraction must be in [0, 1]");
   if (!unit(contradiction_gap))
     throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.contradiction_gap must be in [0, 1]");
+  if (!unit(contradiction_regret))
+    throw RecognitionError(RecognitionErrorCode::kInvalidOptions, "evidence.contradiction_regret must be in [0, 1]");
+}
+
+std::vector<bool> contradictingImages(const std::vector<double>& coverage, const std::vector<double>& regret,
+                                      const EvidenceOptions& o) {
+  std::vector<bool> out(coverage.size(), false);
+  if (coverage.size() < 2) return out;
+  const double best = *std::max_element(coverage.begin(), coverage.end());
+  const bool with_regret = regret.size() == coverage.size();
+  const std::size_t least = with_regret ? static_cast<std::size_t>(std::min_element(regret.begin(), regret.end()) - regret.begin()) : 0;
+  for (std::size_t i = 0; i < coverage.size(); ++i)
+    out[i] = coverage[i] < best - o.contradiction_gap || (with_regret && i != least && regret[i] > o.contradiction_regret);
+  return out;
 }
 
 std::string completenessProblem(const TextileCompleteness& c, const EvidenceOptions& o) {

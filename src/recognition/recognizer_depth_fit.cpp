@@ -225,15 +225,21 @@ void measureImageCoverage(RecognitionRun& run, const std::vector<vision::BitMask
     sum += res.image_coverage.back();
   }
   res.coverage = matched.empty() ? 0.0 : sum / matched.size();
-  res.contradicting_images = run.left_out_contradicting;
+  res.image_regret.clear();
   if (matched.size() >= 2) {
-    const double best = *std::max_element(res.image_coverage.begin(), res.image_coverage.end());
-    for (double c : res.image_coverage) res.contradicting_images += c < best - run.o.evidence.contradiction_gap;
+    const LoadedIndex& wli = *run.coarse[run.cands.front().coarse].li;
+    const vision::MatchOptions mo = coarseMatchOptions(run, wli);
+    for (std::size_t i = 0; i < matched.size(); ++i)
+      res.image_regret.push_back(bestSingleImageScore(run, i) -
+                                 vision::bestShiftIou(res.query_masks[i], matched[i], mo.max_dx, mo.max_dy).score);
   }
+  res.contradicting_images = run.left_out_contradicting;
+  for (bool c : contradictingImages(res.image_coverage, res.image_regret, run.o.evidence)) res.contradicting_images += c;
   for (int k = 0; k < res.contradicting_images; ++k) res.confidence *= 0.5;
   if (res.contradicting_images > run.left_out_contradicting)
     res.warnings.push_back(std::to_string(res.contradicting_images) + " of " + std::to_string(matched.size()) +
-                           " images are explained worse than the best by more than evidence.contradiction_gap: "
+                           " images are explained worse than the best by more than evidence.contradiction_gap, or match another "
+                           "shape alone better than the winner by more than evidence.contradiction_regret: "
                            "confidence halved, grasp points less trusted");
 }
 

@@ -109,6 +109,10 @@ vision::BitMask renderFor(const RefinementOptions& ro, const VecX& x, const Text
 
 void checkLoadedState(const RecognitionRun& run, const std::string& database_path);
 void prepareImages(RecognitionRun& run);
+/// The coarse query's options for one loaded index (the metric shift range in its canonical pixels).
+vision::MatchOptions coarseMatchOptions(const RecognitionRun& run, const LoadedIndex& li);
+/// Image i's best single-image coarse score over every loaded index (0 if nothing matches).
+double bestSingleImageScore(RecognitionRun& run, std::size_t i);
 void coarseQuery(RecognitionRun& run);
 void refineClasses(RecognitionRun& run);
 void rankCandidates(RecognitionRun& run);

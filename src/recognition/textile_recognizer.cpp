@@ -160,12 +160,11 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   fused.answer_images.clear();
   for (std::size_t i = 0; i < obs.size(); ++i) fused.answer_images.push_back(static_cast<int>(i));
   if (fused.contradicting_images == 0 || obs.size() < 2) return fused;
-  // Two groups: the images the fused winner explains (within the gap of the best) and the others. The
-  // answer rests on the first image's group unless the other group is larger.
-  const double best = *std::max_element(fused.image_coverage.begin(), fused.image_coverage.end());
+  // Two groups: the images the fused winner explains (contradictingImages) and the others. The answer
+  // rests on the first image's group unless the other group is larger.
+  const std::vector<bool> odd = contradictingImages(fused.image_coverage, fused.image_regret, st->options.evidence);
   std::vector<int> explained, other;
-  for (std::size_t i = 0; i < obs.size(); ++i)
-    (fused.image_coverage[i] < best - st->options.evidence.contradiction_gap ? other : explained).push_back(static_cast<int>(i));
+  for (std::size_t i = 0; i < obs.size(); ++i) (i < odd.size() && odd[i] ? other : explained).push_back(static_cast<int>(i));
   const bool first_explained = !explained.empty() && explained.front() == 0;
   const std::vector<int>& keep = first_explained ? explained : other;
   const std::vector<int>& against = first_explained ? other : explained;
@@ -189,7 +188,7 @@ RecognitionResult TextileRecognizer::recognize(const std::vector<CameraObservati
   for (std::size_t i = 0; i < obs.size(); ++i)
     if (std::find(keep.begin(), keep.end(), static_cast<int>(i)) == keep.end())
       left_out += (left_out.empty() ? "" : ", ") + std::to_string(i);
-  anchored.warnings.push_back("image(s) " + left_out + " contradict the others (evidence.contradiction_gap): left out of the "
+  anchored.warnings.push_back("image(s) " + left_out + " contradict the others (evidence.contradiction_gap / contradiction_regret): left out of the "
                               "answer, confidence halved per image, grasp points less trusted");
   return anchored;
 }

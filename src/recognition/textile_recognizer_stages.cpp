@@ -172,6 +172,31 @@ void prepareImages(RecognitionRun& run) {
   res.segmentation_ms = msSince(run.t_start);
 }
 
+vision::MatchOptions coarseMatchOptions(const RecognitionRun& run, const LoadedIndex& li) {
+  // The shift range in metres, converted to this index's canonical pixels (docs/database.md).
+  vision::MatchOptions mo = run.o.match;
+  if (run.o.max_shift_x_m >= 0 && run.o.max_shift_y_m >= 0) {
+    const vision::MatchOptions metric = db::metricShiftOptions(li.index.frame, run.o.max_shift_x_m, run.o.max_shift_y_m, mo.top_k);
+    mo.max_dx = metric.max_dx;
+    mo.max_dy = metric.max_dy;
+  }
+  return mo;
+}
+
+double bestSingleImageScore(RecognitionRun& run, std::size_t i) {
+  double best = 0;
+  for (const auto& li : run.st.indices) {
+    try {
+      const db::DrapeQueryResult r = db::queryDrape(li->index, run.canonical(li->index.frame)[i], coarseMatchOptions(run, *li));
+      for (const auto& m : r.matches)
+        if (m.class_index != db::kForeignClass) best = std::max(best, m.score);
+    } catch (const std::invalid_argument&) {
+      // an index this image cannot be queried against contributes nothing
+    }
+  }
+  return best;
+}
+
 void coarseQuery(RecognitionRun& run) {
   const RecognizerOptions& o = run.o;
   const std::vector<PreparedImage>& imgs = run.imgs;
@@ -182,13 +207,7 @@ void coarseQuery(RecognitionRun& run) {
     const auto& q = run.canonical(li->index.frame);
     db::DrapeQueryResult r;
     try {
-      // The shift range in metres, converted to this index's canonical pixels (docs/database.md).
-      vision::MatchOptions mo = o.match;
-      if (o.max_shift_x_m >= 0 && o.max_shift_y_m >= 0) {
-        const vision::MatchOptions metric = db::metricShiftOptions(li->index.frame, o.max_shift_x_m, o.max_shift_y_m, mo.top_k);
-        mo.max_dx = metric.max_dx;
-        mo.max_dy = metric.max_dy;
-      }
+      const vision::MatchOptions mo = coarseMatchOptions(run, *li);
       if (n == 1) {
         r = db::queryDrape(li->index, q[0], mo);
       } else {

@@ -331,3 +331,21 @@ TEST_F(EvidenceTest, FuzzedImagesEndInAFlooredSuccessOrATypedError) {
 }
 
 }  // namespace
+
+// Which fused images contradict: a coverage far below the best image's, or a large regret (the image
+// alone matches another shape much better) - never every image: the one with the least regret stays.
+TEST(ContradictingImages, CoverageGapOrRegretButOneImageAlwaysStays) {
+  EvidenceOptions o;  // gap 0.1, regret 0.2
+  using V = std::vector<bool>;
+  EXPECT_EQ(contradictingImages({0.8}, {0.5}, o), V({false}));             // one image: nothing to contradict
+  EXPECT_EQ(contradictingImages({0.85, 0.80}, {0.02, 0.05}, o), V({false, false}));
+  EXPECT_EQ(contradictingImages({0.85, 0.70}, {0.02, 0.05}, o), V({false, true}));  // covered 0.15 worse
+  EXPECT_EQ(contradictingImages({0.80, 0.82}, {0.02, 0.25}, o), V({false, true}));  // alone it points elsewhere
+  EXPECT_EQ(contradictingImages({0.80, 0.82}, {0.30, 0.25}, o), V({true, false}));  // both: the lesser regret stays
+  EXPECT_EQ(contradictingImages({0.80, 0.82, 0.81}, {0.01, 0.25, 0.21}, o), V({false, true, true}));
+  EXPECT_EQ(contradictingImages({0.80, 0.82}, {}, o), V({false, false}));   // no regrets measured
+  o.contradiction_regret = 1.0;  // the regret test off
+  EXPECT_EQ(contradictingImages({0.80, 0.82}, {0.02, 0.9}, o), V({false, false}));
+  o.contradiction_regret = std::nan("");
+  EXPECT_THROW(o.validate(), RecognitionError);
+}

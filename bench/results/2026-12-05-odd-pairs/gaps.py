@@ -20,5 +20,10 @@ for name, rows in (('consistent pairs', cons), ('odd pairs', odd)):
 worse = [r for r in odd if F(r, 'hold_error_m') > F(r, 'one_image_hold_error_m') + 0.05]
 print('odd pairs whose hold point is > 5 cm worse than the first image alone: %d of %d (flagged: %d)' %
       (len(worse), len(odd), sum(int(r['contradicting_images']) > 0 for r in worse)))
+if 'max_image_regret' in odd[0]:
+    for name, rows in (('consistent pairs', cons), ('odd pairs', odd)):
+        v = sorted(F(r, 'max_image_regret') for r in rows if int(r['contradicting_images']) == 0)
+        print('%s not flagged: largest image regret median %.3f, quartiles %.3f / %.3f, max %.3f; above 0.2: %d' %
+              (name, v[len(v) // 2], v[len(v) // 4], v[3 * len(v) // 4], v[-1], sum(x > 0.2 for x in v)))
 print('odd pairs: %d safe corners, %d within 3 cm of the first image\'s drape' %
       (sum(int(r['safe_corners']) for r in odd), sum(int(r['safe_within_3cm']) for r in odd)))

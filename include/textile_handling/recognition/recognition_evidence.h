@@ -41,10 +41,23 @@ struct EvidenceOptions {
   /// Consistent pairs of the same drape differ by 0.005-0.02 (test_textile_recognizer); an image of
   /// another hold point fused in by 0.15-0.35.
   double contradiction_gap = 0.1;
+  /// ... or whose regret exceeds this (RecognitionResult::image_regret: the image alone matches another
+  /// stored shape this much better than the fused winner): the fused winner only compromises with it.
+  /// On foreign drapes the coverage gap missed most images of another drape (the compromise covers both
+  /// images alike); their regrets were mostly 0.08-0.32, those of consistent pairs mostly below 0.17
+  /// (docs/recognition.md, "A view that contradicts the others"). 1 disables it.
+  double contradiction_regret = 0.2;
 
   /// Throws RecognitionError(kInvalidOptions) naming the bad field.
   void validate() const;
 };
+
+/// Which images of a fused result contradict the others (one flag per image): covered by the winner more
+/// than contradiction_gap below the best image, or with a regret above contradiction_regret - except the
+/// image with the least regret, so that one image always remains. `image_regret` may be empty (no
+/// regret test).
+std::vector<bool> contradictingImages(const std::vector<double>& image_coverage, const std::vector<double>& image_regret,
+                                      const EvidenceOptions& options);
 
 /// What one selected textile has in the database and what of it was loaded.
 struct TextileCompleteness {

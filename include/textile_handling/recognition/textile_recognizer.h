@@ -210,6 +210,11 @@ struct RecognitionResult {
   // ---- evidence ----
   double coverage = 0;                  ///< see EvidenceOptions::min_coverage (mean over the images)
   std::vector<double> image_coverage;   ///< per image: its own coverage by the winner
+  /// Per image of a fused result: the best score that image reaches alone (the single-image coarse
+  /// query, every loaded index) minus the winner's score on it (best-shift IoU of the winner rendered for
+  /// that image, the same shift range). Large: the image alone points elsewhere, and the fused winner
+  /// only compromises with it. Empty for one image.
+  std::vector<double> image_regret;
   /// Images of a fused result that the fused winner explains much worse than the best image
   /// (EvidenceOptions::contradiction_gap): views that contradict the others. Each halves the confidence;
   /// any makes the match weak for the per-point trust (every bound doubled, except for points two or

@@ -98,6 +98,7 @@ struct ForeignScore {
   /// Best minus worst image coverage by the winner (RecognitionResult::image_coverage); 0 for one image,
   /// -1 when the answer rests on fewer images than were given (a contradicting one left out).
   double coverage_gap = 0;
+  double max_image_regret = 0;  ///< largest RecognitionResult::image_regret (0 for one image)
   double processing_ms = 0;
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0;  ///< the recognizer's stage times (refine includes the depth fit)
 };
