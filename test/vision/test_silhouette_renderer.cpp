@@ -52,6 +52,18 @@ Sheet flatSheet(double w, double h, double d) {
   return s;
 }
 
+// Sum of the triangles' areas in the flat textile (grid positions); every triangle must be counter-clockwise.
+double flatArea(const ParticleGrid& g, const std::vector<Triangle>& tris) {
+  double area = 0;
+  for (const auto& t : tris) {
+    const Vec2 a = g.activePosition(t[0]), b = g.activePosition(t[1]), c = g.activePosition(t[2]);
+    const double s = 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
+    EXPECT_GT(s, 0);
+    area += s;
+  }
+  return area;
+}
+
 TEST(Triangles, FromTopologyCoversEveryCompleteCell) {
   std::string err;
   const ParticleGrid rect = ParticleGrid::rasterize(rectangle(0.3, 0.2), 0.05, &err);
@@ -59,14 +71,7 @@ TEST(Triangles, FromTopologyCoversEveryCompleteCell) {
   const auto tris = trianglesFromTopology(ParticleTopology::fromGrid(rect));
   EXPECT_EQ(tris.size(), static_cast<std::size_t>(2 * (rect.rows() - 1) * (rect.cols() - 1)));
   // Triangle areas in the flat textile sum to the rectangle's area, and all are positive (CCW).
-  double area = 0;
-  for (const auto& t : tris) {
-    const Vec2 a = rect.activePosition(t[0]), b = rect.activePosition(t[1]), c = rect.activePosition(t[2]);
-    const double s = 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
-    EXPECT_GT(s, 0);
-    area += s;
-  }
-  EXPECT_NEAR(area, 0.3 * 0.2, 1e-12);
+  EXPECT_NEAR(flatArea(rect, tris), 0.3 * 0.2, 1e-12);
 
   // L shape: the missing quadrant has no cells.
   TextileOutline l;
@@ -81,16 +86,6 @@ TEST(Triangles, FromTopologyCoversEveryCompleteCell) {
 // frame with about a pixel per block.
 TEST(Triangles, CoarseGridTrianglesCoverTheSameSheet) {
   std::string err;
-  const auto flatArea = [](const ParticleGrid& g, const std::vector<Triangle>& tris) {
-    double area = 0;
-    for (const auto& t : tris) {
-      const Vec2 a = g.activePosition(t[0]), b = g.activePosition(t[1]), c = g.activePosition(t[2]);
-      const double s = 0.5 * ((b - a).x() * (c - a).y() - (b - a).y() * (c - a).x());
-      EXPECT_GT(s, 0);
-      area += s;
-    }
-    return area;
-  };
   TextileOutline l;  // concave: an L whose notch cuts blocks in half
   l.outline = {Vec2(0, 0), Vec2(0.33, 0), Vec2(0.33, 0.13), Vec2(0.17, 0.13), Vec2(0.17, 0.25), Vec2(0, 0.25)};
   for (const TextileOutline& t : {rectangle(0.31, 0.2), l}) {

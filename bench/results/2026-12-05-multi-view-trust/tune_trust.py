@@ -22,7 +22,9 @@ def load(d):
 BASE = {'model': .15, 'surface': .12, 'outline_corner': .025, 'lowest_point': .02}
 
 
-def bound(r, p):
+def bound(r, p, extra=None):
+    """The rule's bound for corner row r under constants p; `extra(r, p)` adds a term for located points
+    before the doubling (../2026-12-05-tip-roughness/tune_trust.py: the tip roughness)."""
     ev = r['evidence']
     u = p['lp'] if ev == 'lowest_point' else BASE[ev]
     located = ev in ('outline_corner', 'lowest_point')
@@ -35,31 +37,41 @@ def bound(r, p):
         if margin < p['margin']:
             u += shift + max(0, margin)
         u += max(0, F(r, 'disagreement_m'))
+        if extra:
+            u += extra(r, p)
     score = 0 if r['contra'] > 0 and not agreeing else F(r, 'score')
     if score < (p['weak_agreeing'] if agreeing else p['weak']):
         u *= 2
     return u
 
 
-def evaluate(groups, p, views):
+def evaluate(groups, p, views, bound_fn=None):
+    """(results, results with a safe corner, safe corners, safe corners within 3 cm) for `views` images;
+    `bound_fn(row, p)` replaces this rule's bound (../2026-12-05-tip-roughness/tune_trust.py)."""
+    b = bound_fn or bound
     g = [x for x in groups if x[0]['views'] == views]
-    safe = [r for x in g for r in x if bound(r, p) <= .03]
-    return len(g), sum(any(bound(r, p) <= .03 for r in x) for x in g), len(safe), sum(F(r, 'error_m') <= .03 for r in safe)
+    safe = [r for x in g for r in x if b(r, p) <= .03]
+    return len(g), sum(any(b(r, p) <= .03 for r in x) for x in g), len(safe), sum(F(r, 'error_m') <= .03 for r in safe)
 
 
-cal, check = load('after_seed11'), load('after_seed1')
-defaults = dict(lp=.02, agreeing_m=.005, gain=.5, margin=.05, weak=.75, weak_agreeing=.65)
-recorded = sum((bound(r, defaults) <= .03) != (r['safe'] == '1') for g in cal + check for r in g)
-print('defaults: seed 11', evaluate(cal, defaults, '1'), evaluate(cal, defaults, '2'),
-      'seed 1', evaluate(check, defaults, '1'), evaluate(check, defaults, '2'),
-      '(rows whose recorded safe flag differs: %d)' % recorded)
-ranked = []
-for lp, ag, gain, margin, weak, wa in itertools.product([.015, .02, .025], [0, .005, .01], [.25, .5, 1], [.03, .05, .07],
-                                                        [.7, .75, .8], [.6, .65, .7, .75]):
-    p = dict(lp=lp, agreeing_m=ag, gain=gain, margin=margin, weak=weak, weak_agreeing=wa)
-    one, two = evaluate(cal, p, '1'), evaluate(cal, p, '2')
-    precision = (one[3] + two[3]) / max(1, one[2] + two[2])
-    ranked.append((precision >= 0.95, min(one[1] / one[0], two[1] / two[0]), precision, p, one, two))
-ranked.sort(key=lambda x: (x[0], x[1], x[2]), reverse=True)
-for ok, cover, precision, p, one, two in ranked[:10]:
-    print('%.3f %.3f %s seed 11 %s %s seed 1 %s %s' % (cover, precision, p, one, two, evaluate(check, p, '1'), evaluate(check, p, '2')))
+def main():
+    cal, check = load('after_seed11'), load('after_seed1')
+    defaults = dict(lp=.02, agreeing_m=.005, gain=.5, margin=.05, weak=.75, weak_agreeing=.65)
+    recorded = sum((bound(r, defaults) <= .03) != (r['safe'] == '1') for g in cal + check for r in g)
+    print('defaults: seed 11', evaluate(cal, defaults, '1'), evaluate(cal, defaults, '2'),
+          'seed 1', evaluate(check, defaults, '1'), evaluate(check, defaults, '2'),
+          '(rows whose recorded safe flag differs: %d)' % recorded)
+    ranked = []
+    for lp, ag, gain, margin, weak, wa in itertools.product([.015, .02, .025], [0, .005, .01], [.25, .5, 1], [.03, .05, .07],
+                                                            [.7, .75, .8], [.6, .65, .7, .75]):
+        p = dict(lp=lp, agreeing_m=ag, gain=gain, margin=margin, weak=weak, weak_agreeing=wa)
+        one, two = evaluate(cal, p, '1'), evaluate(cal, p, '2')
+        precision = (one[3] + two[3]) / max(1, one[2] + two[2])
+        ranked.append((precision >= 0.95, min(one[1] / one[0], two[1] / two[0]), precision, p, one, two))
+    ranked.sort(key=lambda x: (x[0], x[1], x[2]), reverse=True)
+    for ok, cover, precision, p, one, two in ranked[:10]:
+        print('%.3f %.3f %s seed 11 %s %s seed 1 %s %s' % (cover, precision, p, one, two, evaluate(check, p, '1'), evaluate(check, p, '2')))
+
+
+if __name__ == '__main__':
+    main()

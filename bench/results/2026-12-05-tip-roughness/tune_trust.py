@@ -6,45 +6,21 @@ defaults, then for a grid of constants ranked on the calibration set (seed 11) a
 Usage (in this directory): tune_trust.py [CAL CHECK ...]; default seed11 seed1 thesis_seed1 seed31."""
 import csv, itertools, sys
 
-F = lambda r, k: float(r[k])
-BASE = {'model': .15, 'surface': .12, 'outline_corner': .025, 'lowest_point': .02}
+import importlib.util, os
 
-
-def load(d):
-    rows = list(csv.DictReader(open(d + '/foreign_corners.csv')))
-    res = list(csv.DictReader(open(d + '/foreign_drapes.csv')))
-    groups = [rows[i:i + 4] for i in range(0, len(rows), 4)]  # 4 corners per result, in result order
-    assert len(groups) == len(res)
-    for g, r in zip(groups, res):
-        for q in g:
-            q['contra'] = int(r['contradicting_images'])
-    return groups
-
-
+# load(), bound() and evaluate() build on those of ../2026-12-05-multi-view-trust/tune_trust.py, with this rule's bound.
+_spec = importlib.util.spec_from_file_location(
+    'multi_view_trust', os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '2026-12-05-multi-view-trust', 'tune_trust.py'))
+_previous = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_previous)
+F, load = _previous.F, _previous.load
 def bound(r, p):
-    ev = r['evidence']
-    u = p['lp'] if ev == 'lowest_point' else BASE[ev]
-    located = ev in ('outline_corner', 'lowest_point')
-    agreeing = located and int(r['located_images']) >= 2
-    if located:
-        shift, margin = max(0, F(r, 'located_shift_m')), F(r, 'label_margin_m')
-        if agreeing:
-            u = max(0, u - .005)
-        u += p['gain'] * shift
-        if margin < p['margin']:
-            u += shift + max(0, margin)
-        u += max(0, F(r, 'disagreement_m'))
-        u += p['rough'] * max(0, F(r, 'tip_roughness_m'))
-    score = 0 if r['contra'] > 0 and not agreeing else F(r, 'score')
-    if score < (p['weak_agreeing'] if agreeing else p['weak']):
-        u *= 2
-    return u
+    """The previous rule's bound (agreeing images take 0.5 cm off) plus the roughness term."""
+    return _previous.bound(r, dict(p, agreeing_m=.005), lambda row, q: q['rough'] * max(0, F(row, 'tip_roughness_m')))
 
 
 def evaluate(groups, p, views):
-    g = [x for x in groups if x[0]['views'] == views]
-    safe = [r for x in g for r in x if bound(r, p) <= .03]
-    return len(g), sum(any(bound(r, p) <= .03 for r in x) for x in g), len(safe), sum(F(r, 'error_m') <= .03 for r in safe)
+    return _previous.evaluate(groups, p, views, bound)
 
 
 def show(name, groups, p):
