@@ -186,6 +186,9 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   o.evidence.contradiction_gap = finiteParam(pnh, "evidence/contradiction_gap", o.evidence.contradiction_gap, 0.0);
   o.evidence.contradiction_regret = finiteParam(pnh, "evidence/contradiction_regret", o.evidence.contradiction_regret, 0.0);
   pnh.param("evidence/ignore_unbuilt_textiles", o.evidence.ignore_unbuilt_textiles, o.evidence.ignore_unbuilt_textiles);
+  pnh.param("localisation/enabled", o.localisation.enabled, o.localisation.enabled);
+  o.trust.safe_bound_m = finiteParam(pnh, "trust/safe_bound_m", o.trust.safe_bound_m, 0.0);
+  o.trust.roughness_gain = finiteParam(pnh, "trust/roughness_gain", o.trust.roughness_gain, 0.0);
   try {
     o.validate();
     recognizer_ = std::make_unique<recognition::TextileRecognizer>(db_path, o);
