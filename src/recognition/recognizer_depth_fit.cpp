@@ -61,11 +61,26 @@ double silhouetteScore(const RecognitionRun& run, const std::vector<vision::BitM
   return sum / static_cast<double>(n);
 }
 
+// Median depthResidual over `depth_images` of those with a residual (the mean of the middle two for an
+// even count): one odd image among three does not move it. -1 if none has one.
+double medianDepthResidual(const RecognitionRun& run, const std::vector<std::size_t>& depth_images, const VecX& x,
+                           const StoredShape& s, double base_angle) {
+  std::vector<double> r;
+  for (std::size_t i : depth_images) {
+    const double v = depthResidual(run, i, x, s, base_angle);
+    if (v >= 0) r.push_back(v);
+  }
+  if (r.empty()) return -1.0;
+  std::sort(r.begin(), r.end());
+  const std::size_t m = r.size() / 2;
+  return r.size() % 2 ? r[m] : 0.5 * (r[m - 1] + r[m]);
+}
+
 // One member of the winning class, as stored and (consider_reflections) mirrored front-to-back, at
 // azimuths within depth_yaw_range_deg whose silhouette score stays within depth_score_slack of the
-// member's best: the lowest cost (1 - IoU) + depth_weight_per_m * residual. Updates `f` and returns
+// member's best: the lowest cost (1 - IoU) + depth_weight_per_m * residual (median over `depth_images`). Updates `f` and returns
 // true with the cost in *cost if some azimuth had a depth residual; false (f unchanged) otherwise.
-bool fitMemberByDepth(const RecognitionRun& run, std::size_t depth_image, const LoadedIndex& wli,
+bool fitMemberByDepth(const RecognitionRun& run, const std::vector<std::size_t>& depth_images, const LoadedIndex& wli,
                       const std::vector<vision::BitMask>& wq, MemberFit& f, double* cost) {
   const RefinementOptions& ro = run.o.refinement;
   const auto sp = run.shape(wli.index.hold_points[f.hold_point].simulation_id, wli.index.hold_points[f.hold_point].hold);
@@ -79,7 +94,7 @@ bool fitMemberByDepth(const RecognitionRun& run, std::size_t depth_image, const 
     double local_cost = std::numeric_limits<double>::infinity(), local_angle = centre0;
     auto consider = [&](double a, double iou) {
       if (iou < floor_iou) return;
-      const double r = depthResidual(run, depth_image, x, *sp, a);
+      const double r = medianDepthResidual(run, depth_images, x, *sp, a);
       if (r < 0) return;
       const double c = (1.0 - iou) + ro.depth_weight_per_m * r;
       if (c < local_cost - 1e-12) {
@@ -125,12 +140,11 @@ void fitDepth(RecognitionRun& run) {
   // Depth: choose among the winner's near-best members by the fit of predicted to measured depth.
   Candidate& win = run.cands.front();
   const LoadedIndex& wli = *run.coarse[win.coarse].li;
-  std::size_t depth_image = n;
+  std::size_t depth_image = n;  // the first image with depth
+  std::vector<std::size_t> depth_images;
   for (std::size_t i = 0; i < n; ++i)
-    if (!imgs[i].depth_m.empty()) {
-      depth_image = i;
-      break;
-    }
+    if (!imgs[i].depth_m.empty() && (depth_images.empty() || ro.depth_all_images)) depth_images.push_back(i);
+  if (!depth_images.empty()) depth_image = depth_images.front();
   auto& wfits = run.fits[win.coarse];
   const auto& wq = run.canonical(wli.index.frame);
   if (!wfits.empty() && depth_image < n && ro.use_depth) {
@@ -142,7 +156,7 @@ void fitDepth(RecognitionRun& run) {
       MemberFit& f = wfits[k];
       if (f.score < top - ro.depth_member_slack) continue;
       double m_cost = 0;
-      if (!fitMemberByDepth(run, depth_image, wli, wq, f, &m_cost)) continue;
+      if (!fitMemberByDepth(run, depth_images, wli, wq, f, &m_cost)) continue;
       ++evaluated;
       if (m_cost < best_cost) {
         best_cost = m_cost;

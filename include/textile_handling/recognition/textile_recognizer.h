@@ -80,6 +80,9 @@ struct RefinementOptions {
   /// silhouette, the other chirality; a towel grasped while lying face down hangs as the mirror image of
   /// the face-up simulation).
   bool consider_reflections = true;
+  /// Fused images: the depth misfit is the median over every image with depth (the mean of two; false:
+  /// the first image with depth only).
+  bool depth_all_images = true;
   /// Fewer overlapping depth pixels than this: no depth decision.
   int depth_min_pixels = 100;
   /// The depth fit is the mean of min(|predicted - measured|, depth_truncation_m) over the pixels of the
