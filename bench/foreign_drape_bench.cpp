@@ -161,6 +161,16 @@ bench::ForeignScore recogniseViews(const recognition::TextileRecognizer& rec, co
   return s;
 }
 
+// `first` at azimuth a and `second` after the gripper turn vo.turn_deg, with their relative views set.
+std::vector<bench::ForeignView> renderPair(const bench::ForeignDrape& first, const bench::ForeignDrape& second, double a,
+                                           const bench::ForeignViewOptions& vo, std::uint64_t seed) {
+  std::vector<bench::ForeignView> pair = {bench::renderForeignView(first, a, vo, seed),
+                                          bench::renderForeignView(second, a + vo.turn_deg, vo, seed + 1)};
+  pair[0].observation.relative_view_deg = 0.0;
+  pair[1].observation.relative_view_deg = vo.turn_deg;
+  return pair;
+}
+
 // --odd-pairs: per drape, the first image of a random azimuth fused with an image of the next drape in
 // the list whose hold point lies >= 10 cm from this one's under every mirror (after the same 90 degree
 // turn). Rows in DIR/foreign_odd_pairs.csv; the flag rate on stdout.
@@ -183,10 +193,7 @@ void runOddPairs(const Options& o, const std::vector<bench::ForeignDrape>& drape
     if (!other) continue;
     const double a = az(rng);
     const std::uint64_t seed = rng();
-    std::vector<bench::ForeignView> pair = {bench::renderForeignView(d, a, vo, seed),
-                                            bench::renderForeignView(*other, a + vo.turn_deg, vo, seed + 1)};
-    pair[0].observation.relative_view_deg = 0.0;
-    pair[1].observation.relative_view_deg = vo.turn_deg;
+    const std::vector<bench::ForeignView> pair = renderPair(d, *other, a, vo, seed);
     const bench::ForeignScore one = recogniseViews(rec, d, {pair[0]}), two = recogniseViews(rec, d, pair);
     int safe = 0, safe_within = 0;
     for (std::size_t c = 0; c < two.corner_poses.size(); ++c)
@@ -291,19 +298,13 @@ int main(int argc, char** argv) {
     std::vector<ChartPoint> chart, paired;  // paired: the same drape and azimuth, one image (x) against two (y)
     std::mt19937_64 rng(o.seed + 99);
     std::uniform_real_distribution<double> az(0.0, 360.0);
-    auto recognise = [&](const bench::ForeignDrape& d, const std::vector<bench::ForeignView>& views) {
-      return recogniseViews(rec, d, views);
-    };
     for (const bench::ForeignDrape& d : drapes) {
       for (int k = 0; k < o.views; ++k) {
         const double a = (k + az(rng) / 360.0) * 360.0 / o.views;  // stratified: every view count covers the circle
         const std::uint64_t seed = rng();
-        std::vector<bench::ForeignView> pair = {bench::renderForeignView(d, a, vo, seed),
-                                                bench::renderForeignView(d, a + vo.turn_deg, vo, seed + 1)};
-        pair[0].observation.relative_view_deg = 0.0;
-        pair[1].observation.relative_view_deg = vo.turn_deg;
-        const bench::ForeignScore s1 = recognise(d, {pair[0]});
-        const bench::ForeignScore s2 = recognise(d, pair);
+        const std::vector<bench::ForeignView> pair = renderPair(d, d, a, vo, seed);
+        const bench::ForeignScore s1 = recogniseViews(rec, d, {pair[0]});
+        const bench::ForeignScore s2 = recogniseViews(rec, d, pair);
         for (const auto* s : {&s1, &s2}) {
           const int n = s == &s1 ? 1 : 2;
           (n == 1 ? one : two).add(*s);

@@ -178,7 +178,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   s.confidence = r.confidence;
   s.contradicting_images = r.contradicting_images;
   for (double g : r.image_regret) s.max_image_regret = std::max(s.max_image_regret, g);
-  if (r.contradicting_images > 0) s.coverage_gap = -1;  // unless the answer still rests on every image:
+  if (r.contradicting_images > 0) s.coverage_gap = -1;  // overwritten if the answer still rests on every image
   if (r.image_coverage.size() >= 2)
     s.coverage_gap = *std::max_element(r.image_coverage.begin(), r.image_coverage.end()) -
                      *std::min_element(r.image_coverage.begin(), r.image_coverage.end());
@@ -216,8 +216,7 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
     for (const Vec3& q : points) best = std::min(best, (p - q).norm());
     return best;
   };
-  double best_hold = std::numeric_limits<double>::infinity();
-  for (db::MirrorKind g : group) best_hold = std::min(best_hold, (sym.apply(g, drape.hold) - r.hold_point).norm());
+  const double best_hold = mirrorDistance(drape, r.hold_point);  // the mirrors are isometries and involutions
   s.hold_error_m = best_hold;
   double best_mean = std::numeric_limits<double>::infinity();
   for (db::MirrorKind g : group) {

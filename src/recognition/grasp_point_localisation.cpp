@@ -151,7 +151,7 @@ std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const 
   if (n < 4 * k) return out;
   // Orientation of the contour: the sign of its area decides which turn is convex.
   const double orientation = cv::contourArea(c, true) > 0 ? 1.0 : -1.0;
-  const double noise_sigma = depthNoiseSigma(view);
+  double noise_sigma = -1;  // depthNoiseSigma(view), computed for the first corner that needs it
   std::vector<double> angle(n, 180.0);
   std::vector<bool> convex(n, false);
   for (int i = 0; i < n; ++i) {
@@ -183,7 +183,11 @@ std::vector<OutlineCorner> findOutlineCorners(const GraspPointView& view, const 
     if (oc.position.norm() < o.hold_exclusion_m) continue;
     const double residual = tipDepthResidual(view, c[i].x, c[i].y, k);
     oc.tip_depth_residual_m = std::isfinite(residual) ? residual : 0.0;
-    oc.depth_noise_m = std::isfinite(noise_sigma) ? noise_sigma : 0.0;
+    if (noise_sigma < 0) {
+      const double s = depthNoiseSigma(view);
+      noise_sigma = std::isfinite(s) ? s : 0.0;
+    }
+    oc.depth_noise_m = noise_sigma;
     out.push_back(oc);
   }
   if (!out.empty()) {

@@ -140,14 +140,12 @@ void fitDepth(RecognitionRun& run) {
   // Depth: choose among the winner's near-best members by the fit of predicted to measured depth.
   Candidate& win = run.cands.front();
   const LoadedIndex& wli = *run.coarse[win.coarse].li;
-  std::size_t depth_image = n;  // the first image with depth
-  std::vector<std::size_t> depth_images;
+  std::vector<std::size_t> depth_images;  // the first image with depth, or all of them (depth_all_images)
   for (std::size_t i = 0; i < n; ++i)
     if (!imgs[i].depth_m.empty() && (depth_images.empty() || ro.depth_all_images)) depth_images.push_back(i);
-  if (!depth_images.empty()) depth_image = depth_images.front();
   auto& wfits = run.fits[win.coarse];
   const auto& wq = run.canonical(wli.index.frame);
-  if (!wfits.empty() && depth_image < n && ro.use_depth) {
+  if (!wfits.empty() && !depth_images.empty() && ro.use_depth) {
     const double top = wfits[win.member].score;
     std::size_t best = wfits.size();
     double best_cost = std::numeric_limits<double>::infinity();
@@ -179,9 +177,9 @@ void fitDepth(RecognitionRun& run) {
       win.h.reflected = f.reflected;
       win.h.reflection_view_deg = f.reflection_view;
     }
-  } else if (depth_image < n && ro.use_depth) {
+  } else if (!depth_images.empty() && ro.use_depth) {
     const auto sp = run.shape(win.h.simulation_id, win.h.hold_point);
-    win.h.depth_residual_m = depthResidual(run, depth_image, sp->positions, *sp, win.h.view_angle_deg);
+    win.h.depth_residual_m = depthResidual(run, depth_images.front(), sp->positions, *sp, win.h.view_angle_deg);
   }
   res.refine_ms = msSince(run.t_refine);
 }
