@@ -256,8 +256,9 @@ int main(int argc, char** argv) {
     return usage("--holds and --views must be >= 1, --workers >= 0, --max-time > 0");
   std::error_code ec;
   std::filesystem::create_directories(o.out, ec);
-  std::ofstream csv(o.out + "/foreign_drapes.csv"), corners_csv(o.out + "/foreign_corners.csv");
-  if (!csv || !corners_csv) {
+  std::ofstream csv(o.out + "/foreign_drapes.csv"), corners_csv(o.out + "/foreign_corners.csv"),
+      candidates_csv(o.out + "/foreign_candidates.csv");
+  if (!csv || !corners_csv || !candidates_csv) {
     std::cerr << "foreign_drape_bench: cannot write " << o.out << "/foreign_drapes.csv\n";
     return 4;
   }
@@ -292,6 +293,7 @@ int main(int argc, char** argv) {
     corners_csv << "variant,views,hold_error_m,score,corner,observed,images_observed,images_in_mask,depth_gap_m,evidence,located_shift_m,"
                    "label_margin_m,located_images,uncertainty_m,safe,error_m,any_truth_corner_m,truth_surface_m,disagreeing_images,disagreement_m,"
                    "tip_angle_deg,tip_roughness_m\n";
+    candidates_csv << "variant,hold_x_m,hold_y_m,views,azimuth_deg,rank,candidate_x_m,candidate_y_m,candidate_hold_error_m,score,refined\n";
     Summary one, two;
     // Corner errors split by the observation flag, per number of images.
     std::vector<double> seen_err[3], unseen_err[3];
@@ -329,6 +331,12 @@ int main(int argc, char** argv) {
                         << s->corner_truth_surface_m[c] << "," << gp.disagreeing_images << "," << gp.disagreement_m << ","
                         << gp.tip_angle_deg << "," << gp.tip_roughness_m << "\n";
             (ob.observed() ? seen_err[n] : unseen_err[n]).push_back(s->corner_error_m[c]);
+          }
+          for (std::size_t rank = 0; rank < s->candidates.size(); ++rank) {
+            const auto& c = s->candidates[rank];
+            candidates_csv << d.variant << "," << d.hold.x() << "," << d.hold.y() << "," << n << "," << a << "," << rank << ","
+                           << c.hold_point.x() << "," << c.hold_point.y() << "," << c.hold_error_m << "," << c.score << ","
+                           << c.refined << "\n";
           }
           if (s->success && s->lowest_corner_error_m >= 0)
             chart.push_back({std::max(1e-3, 100 * s->hold_error_m), std::max(1e-2, 100 * s->lowest_corner_error_m), "",

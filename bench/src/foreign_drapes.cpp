@@ -218,6 +218,8 @@ ForeignScore scoreRecognition(const ForeignDrape& drape, const vision::CameraPos
   };
   const double best_hold = mirrorDistance(drape, r.hold_point);  // the mirrors are isometries and involutions
   s.hold_error_m = best_hold;
+  for (const recognition::HoldCandidate& c : r.top_k)
+    s.candidates.push_back({c.hold_point, mirrorDistance(drape, c.hold_point), c.score, c.refined});
   double best_mean = std::numeric_limits<double>::infinity();
   for (db::MirrorKind g : group) {
     if ((sym.apply(g, drape.hold) - r.hold_point).norm() > best_hold + 0.01) continue;

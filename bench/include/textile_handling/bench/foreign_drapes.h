@@ -99,6 +99,16 @@ struct ForeignScore {
   /// -1 when the answer rests on fewer images than were given (a contradicting one left out).
   double coverage_gap = 0;
   double max_image_regret = 0;  ///< largest RecognitionResult::image_regret (0 for one image)
+  /// The recogniser's ranked hold-point classes (RecognitionResult::top_k, winner first): each class's
+  /// member hold point (textile frame), its distance to the nearest mirror image of the true hold point
+  /// [m], and its score (refined IoU when refined, else coarse).
+  struct Candidate {
+    Vec2 hold_point = Vec2::Zero();
+    double hold_error_m = -1;
+    double score = 0;
+    bool refined = false;
+  };
+  std::vector<Candidate> candidates;
   double processing_ms = 0;
   double segmentation_ms = 0, query_ms = 0, refine_ms = 0;  ///< the recognizer's stage times (refine includes the depth fit)
 };
