@@ -198,7 +198,6 @@ double bestSingleImageScore(RecognitionRun& run, std::size_t i) {
 }
 
 void coarseQuery(RecognitionRun& run) {
-  const RecognizerOptions& o = run.o;
   const std::vector<PreparedImage>& imgs = run.imgs;
   const std::size_t n = imgs.size();
   std::vector<Coarse>& coarse = run.coarse;
