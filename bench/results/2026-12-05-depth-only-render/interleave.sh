@@ -4,12 +4,15 @@
 # ../2026-12-05-shape-fit-reach/ use it for other pairs of commits), the pairs run one after the other.
 # Usage: A=.../foreign_drape_bench B=.../foreign_drape_bench DB=towel_test.sqlite \
 #        HELD_OUT=.../foreign_drapes.sqlite OUT=DIR [PAIRS="1 2 3"] bash interleave.sh
+# One build against two databases instead (../2026-12-05-hold-density/): A = B = that build, DB_A and
+# DB_B the databases (each defaults to DB).
 set -euo pipefail
 for k in ${PAIRS:-1 2 3}; do
   for v in A B; do
     D=$OUT/$v$k; mkdir -p "$D"; cp "$HELD_OUT" "$D/"
     BIN=$A; [ $v = B ] && BIN=$B
-    OMP_WAIT_POLICY=passive OMP_NUM_THREADS=1 "$BIN" --database "$DB" --out "$D" --holds 4 --views 3 --seed 1 \
+    DBV=${DB_A:-$DB}; [ $v = B ] && DBV=${DB_B:-$DB}
+    OMP_WAIT_POLICY=passive OMP_NUM_THREADS=1 "$BIN" --database "$DBV" --out "$D" --holds 4 --views 3 --seed 1 \
       --workers 1 --max-time 20 --variants choi_ko,stiff_light > "$D/run.log" 2>&1
   done
 done
