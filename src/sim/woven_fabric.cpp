@@ -106,13 +106,12 @@ Real WovenFabric::jammingAngle() const {
 std::string wovenFabricErrors(const WovenFabric& f) {
   std::string e;
   auto bad = [&](const std::string& line) { e += (e.empty() ? "" : "\n") + line; };
-  for (const char* key : {"warp_density_per_m", "weft_density_per_m"}) {
-    const Real v = std::string(key) == "warp_density_per_m" ? f.warp_density_per_m : f.weft_density_per_m;
+  for (const auto& [key, v] : {std::pair<std::string, Real>{"warp_density_per_m", f.warp_density_per_m},
+                               std::pair<std::string, Real>{"weft_density_per_m", f.weft_density_per_m}}) {
     if (!std::isfinite(v) || v <= 0)
-      bad(std::string(key) + " " + shortNumber(v) + " must be finite and > 0");
+      bad(key + " " + shortNumber(v) + " must be finite and > 0");
     else if (v > kMaxYarnDensityPerMetre)
-      bad(std::string(key) + " " + shortNumber(v) + " is above " + shortNumber(kMaxYarnDensityPerMetre) +
-          " yarns per metre (10 per mm)");
+      bad(key + " " + shortNumber(v) + " is above " + shortNumber(kMaxYarnDensityPerMetre) + " yarns per metre (10 per mm)");
   }
   for (const ScalarField& s : kScalarFields) {
     const std::string key = s.key;

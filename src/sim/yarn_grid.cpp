@@ -78,9 +78,9 @@ YarnGrid layYarnGrid(const std::vector<Vec2>& outline, const WovenFabric& fabric
     const std::vector<Real> xs = lineCrossings(outline, 1, y);
     for (std::size_t k = 0; k + 1 < xs.size(); k += 2) {
       Run run{xs[k], xs[k + 1], {}};
-      const Real j0 = std::ceil((run.from - lo.x()) / g.weft_spacing_m - 0.5);
-      for (Real jr = std::max<Real>(0, j0); jr < static_cast<Real>(g.weft_lines); ++jr) {
-        const std::size_t j = static_cast<std::size_t>(jr);
+      // The first weft line right of the run's start (the run lies within the bounding box).
+      const std::size_t j0 = static_cast<std::size_t>(std::max<Real>(0, std::ceil((run.from - lo.x()) / g.weft_spacing_m - 0.5)));
+      for (std::size_t j = j0; j < g.weft_lines; ++j) {
         const Real x = weftX(j);
         if (x <= run.from) continue;
         if (x >= run.to) break;
