@@ -1,6 +1,13 @@
 // Per-segment kernels of the yarn-level model (yarn_kernels.h).
+// GCC 12 reports a -Wmaybe-uninitialized false positive inside Eigen's SelfAdjointEigenSolver
+// (tridiagonalisation); silence it for this file only (it must precede the first Eigen include).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
 #include "textile_handling/sim/yarn_kernels.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 
@@ -47,7 +54,123 @@ SegmentMatrix stretchHessianImpl(const SegmentVector& q, Real k_s, bool clamp) {
   return fromDifferenceHessian(h);
 }
 
+using Vec6 = Eigen::Matrix<Real, 6, 1>;
+using Mat6 = Eigen::Matrix<Real, 6, 6>;
+using Vec7 = Eigen::Matrix<Real, 7, 1>;
+using Mat7 = Eigen::Matrix<Real, 7, 7>;
+
+// theta^2 = F(S, c) for theta = atan2(sqrt(S), c), and F's first and second derivatives. With s = sqrt(S),
+// r^2 = S + c^2, A = theta / s and B = (1 - A c) / S:
+//   F_S = A c / r^2,  F_c = -2 A S / r^2,  F_SS = (c^2 B - 3 A c) / (2 r^4),
+//   F_Sc = (A S - c - A c^2) / r^4,  F_cc = (2 S + 4 A S c) / r^4,
+// (from theta_s = c / r^2, theta_c = -s / r^2 and dS = 2 s ds). For small angles (x = s / c < 1e-2, c > 0)
+// A and B come from the series of atan(x) / x, so nothing cancels: A = (1 - x^2/3 + x^4/5 - x^6/7) / c,
+// B = (1 - 3x^2/5 + 3x^4/7 - x^6/3) / (3 c^2). As S -> 0: F_S -> 1 / c^2, F_SS -> -4 / (3 c^4).
+struct AngleSquared {
+  Real F, F_S, F_c, F_SS, F_Sc, F_cc;
+};
+
+AngleSquared angleSquared(Real S, Real c) {
+  S = std::max<Real>(S, 0);
+  const Real s = std::sqrt(S), r2 = S + c * c, theta = std::atan2(s, c);
+  Real A, B;
+  if (c > 0 && s < 1e-2 * c) {
+    const Real x2 = S / (c * c);
+    A = (1 - x2 / 3 + x2 * x2 / 5 - x2 * x2 * x2 / 7) / c;
+    B = (1 - 3 * x2 / 5 + 3 * x2 * x2 / 7 - x2 * x2 * x2 / 3) / (3 * c * c);
+  } else {
+    A = theta / s;  // s = 0 here only for a yarn folded back on itself: singular (inf / nan)
+    B = (1 - A * c) / S;
+  }
+  AngleSquared f;
+  f.F = theta * theta;
+  f.F_S = A * c / r2;
+  f.F_c = -2 * A * S / r2;
+  f.F_SS = (c * c * B - 3 * A * c) / (2 * r2 * r2);
+  f.F_Sc = (A * S - c - A * c * c) / (r2 * r2);
+  f.F_cc = (2 * S + 4 * A * S * c) / (r2 * r2);
+  return f;
+}
+
+// Bending energy in the stencil's reduced variables r = (a, b, D2) = (x0 - x2, x1 - x0, u1 - u2): value,
+// gradient and (if `H` is not null) Hessian.
+Real bendReduced(const BendVector& q, Real k_b, Vec7* g, Mat7* H) {
+  const Vec3 a = q.segment<3>(4) - q.segment<3>(0), b = q.segment<3>(8) - q.segment<3>(4);
+  const Real D2 = q[11] - q[3];
+  const Real aa = a.squaredNorm(), bb = b.squaredNorm(), c = a.dot(b);
+  const Real S = a.cross(b).squaredNorm();  // not aa bb - c^2: no cancellation for a straight yarn
+  const AngleSquared f = angleSquared(S, c);
+  Vec6 dS, dc;
+  dS << 2 * bb * a - 2 * c * b, 2 * aa * b - 2 * c * a;
+  dc << b, a;
+  const Vec6 df = f.F_S * dS + f.F_c * dc;
+  const Real V = k_b * f.F / D2;
+  if (g) {
+    g->head<6>() = k_b / D2 * df;
+    (*g)[6] = -k_b * f.F / (D2 * D2);
+  }
+  if (H) {
+    const Mat3 I = Mat3::Identity();
+    Mat6 HS, Hc = Mat6::Zero();
+    HS.topLeftCorner<3, 3>() = 2 * bb * I - 2 * b * b.transpose();
+    HS.topRightCorner<3, 3>() = 4 * a * b.transpose() - 2 * b * a.transpose() - 2 * c * I;
+    HS.bottomLeftCorner<3, 3>() = HS.topRightCorner<3, 3>().transpose();
+    HS.bottomRightCorner<3, 3>() = 2 * aa * I - 2 * a * a.transpose();
+    Hc.topRightCorner<3, 3>() = I;
+    Hc.bottomLeftCorner<3, 3>() = I;
+    const Mat6 Hf = f.F_S * HS + f.F_c * Hc + f.F_SS * dS * dS.transpose() +
+                    f.F_Sc * (dS * dc.transpose() + dc * dS.transpose()) + f.F_cc * dc * dc.transpose();
+    H->topLeftCorner<6, 6>() = k_b / D2 * Hf;
+    H->topRightCorner<6, 1>() = -k_b / (D2 * D2) * df;
+    H->bottomLeftCorner<1, 6>() = H->topRightCorner<6, 1>().transpose();
+    (*H)(6, 6) = 2 * k_b * f.F / (D2 * D2 * D2);
+  }
+  return V;
+}
+
+// d r / d q for r = (a, b, D2) and q = (x2, u2, x0, u0, x1, u1).
+Eigen::Matrix<Real, 7, 12> bendReductionJacobian() {
+  Eigen::Matrix<Real, 7, 12> J = Eigen::Matrix<Real, 7, 12>::Zero();
+  J.block<3, 3>(0, 0) = -Mat3::Identity();  // a = x0 - x2
+  J.block<3, 3>(0, 4) = Mat3::Identity();
+  J.block<3, 3>(3, 4) = -Mat3::Identity();  // b = x1 - x0
+  J.block<3, 3>(3, 8) = Mat3::Identity();
+  J(6, 3) = -1;                             // D2 = u1 - u2
+  J(6, 11) = 1;
+  return J;
+}
+
 }  // namespace
+
+BendVector packBendStencil(const Vec3& x2, Real u2, const Vec3& x0, Real u0, const Vec3& x1, Real u1) {
+  BendVector q;
+  q << x2, u2, x0, u0, x1, u1;
+  return q;
+}
+
+Real bendEnergy(const BendVector& q, Real k_b) { return bendReduced(q, k_b, nullptr, nullptr); }
+
+BendVector bendGradient(const BendVector& q, Real k_b) {
+  Vec7 g;
+  bendReduced(q, k_b, &g, nullptr);
+  return bendReductionJacobian().transpose() * g;
+}
+
+BendMatrix bendHessian(const BendVector& q, Real k_b) {
+  Mat7 H;
+  bendReduced(q, k_b, nullptr, &H);
+  const Eigen::Matrix<Real, 7, 12> J = bendReductionJacobian();
+  return J.transpose() * H * J;
+}
+
+BendMatrix bendHessianClamped(const BendVector& q, Real k_b) {
+  Mat7 H;
+  bendReduced(q, k_b, nullptr, &H);
+  const Eigen::SelfAdjointEigenSolver<Mat7> es(H);
+  const Mat7 clamped = es.eigenvectors() * es.eigenvalues().cwiseMax(0).asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::Matrix<Real, 7, 12> J = bendReductionJacobian();
+  return J.transpose() * clamped * J;
+}
 
 SegmentVector packSegment(const Vec3& x0, Real u0, const Vec3& x1, Real u1) {
   SegmentVector q;

@@ -103,6 +103,114 @@ TEST(YarnStretch, ClampedHessianIsPositiveSemiDefinite) {
   EXPECT_LT((stretchHessian(q, kKs) - stretchHessianClamped(q, kKs)).norm(), 1e-12 * stretchHessian(q, kKs).norm());
 }
 
+constexpr Real kKb = 1.96e-9;  // B pi R^2 of the source's shirt [N m^2]
+
+// A bending stencil with segments of ~1 mm bent by `theta` [rad] in a random plane, at a random place.
+BendVector bentStencil(std::mt19937& rng, Real theta) {
+  std::uniform_real_distribution<Real> unit(-1, 1), len(0.7e-3, 1.3e-3);
+  const Vec3 e1 = Vec3(unit(rng), unit(rng), unit(rng)).normalized();
+  const Vec3 e2 = e1.cross(Vec3(unit(rng), unit(rng), unit(rng))).normalized();
+  const Vec3 x0(0.01 * unit(rng), 0.01 * unit(rng), 0.01 * unit(rng));
+  const Real la = len(rng), lb = len(rng), u2 = 0.05 * (unit(rng) + 1);
+  const Vec3 x2 = x0 - la * e1, x1 = x0 + lb * (std::cos(theta) * e1 + std::sin(theta) * e2);
+  return packBendStencil(x2, u2, x0, u2 + len(rng), x1, u2 + len(rng) + len(rng));
+}
+
+template <int N>
+Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
+                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
+  Eigen::Matrix<Real, N, 1> g;
+  for (int k = 0; k < N; ++k) {
+    Eigen::Matrix<Real, N, 1> a = q, b = q;
+    a[k] += h;
+    b[k] -= h;
+    g[k] = (f(a) - f(b)) / (2 * h);
+  }
+  return g;
+}
+
+template <int N>
+Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
+                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
+  Eigen::Matrix<Real, N, N> J;
+  for (int k = 0; k < N; ++k) {
+    Eigen::Matrix<Real, N, 1> a = q, b = q;
+    a[k] += h;
+    b[k] -= h;
+    J.col(k) = (f(a) - f(b)) / (2 * h);
+  }
+  return J;
+}
+
+TEST(YarnBend, GradientAndHessianMatchFiniteDifferencesFromStraightToSharp) {
+  std::mt19937 rng(17);
+  // Straight, nearly straight (series branch), at the series threshold, and clearly bent.
+  for (Real theta : {0.0, 1e-4, 1e-3, 0.00999, 0.01001, 0.1, 0.5, 1.0, 2.0, 2.8}) {
+    for (int trial = 0; trial < 4; ++trial) {
+      const BendVector q = bentStencil(rng, theta);
+      const BendVector g = bendGradient(q, kKb);
+      const BendVector gn = numericGradientN<12>([](const BendVector& p) { return bendEnergy(p, kKb); }, q, 1e-9);
+      const Real gscale = std::max<Real>(g.norm(), kKb * 1e3);  // floor: the gradient at theta ~ 1e-3
+      EXPECT_LT((g - gn).norm(), 1e-5 * gscale) << "theta " << theta;
+      const BendMatrix H = bendHessian(q, kKb);
+      const BendMatrix Hn = numericJacobianN<12>([](const BendVector& p) { return bendGradient(p, kKb); }, q, 1e-9);
+      EXPECT_LT((H - Hn).norm(), 1e-5 * H.norm()) << "theta " << theta;
+      EXPECT_LT((H - H.transpose()).norm(), 1e-12 * H.norm());
+      // Moving the stencil changes nothing; u0 does not appear.
+      EXPECT_LT((g.segment<3>(0) + g.segment<3>(4) + g.segment<3>(8)).norm(), 1e-12 * gscale);
+      EXPECT_EQ(g[7], 0.0);
+      EXPECT_EQ(H.row(7).norm(), 0.0);
+    }
+  }
+}
+
+TEST(YarnBend, SeriesAndClosedFormAgreeAtTheirBorder) {
+  // The small-angle series takes over below tan(theta) = 1e-2: the Hessian must not jump there.
+  for (unsigned seed : {23u, 29u, 31u}) {
+    std::mt19937 rng_a(seed), rng_b(seed);
+    const Real border = std::atan(1e-2);
+    const BendMatrix below = bendHessian(bentStencil(rng_a, border - 1e-12), kKb);
+    const BendMatrix above = bendHessian(bentStencil(rng_b, border + 1e-12), kKb);
+    EXPECT_LT((below - above).norm(), 1e-9 * below.norm()) << "seed " << seed;
+  }
+}
+
+TEST(YarnBend, ValueAndSlidingForceOfTheNotes) {
+  // A right-angle bend, segments 1 mm, u1 - u2 = 2 mm: V = k_b (pi/2)^2 / 2 mm.
+  const BendVector q = packBendStencil(Vec3(-1e-3, 0, 0), 0.1, Vec3::Zero(), 0.101, Vec3(0, 1e-3, 0), 0.102);
+  const Real theta = M_PI / 2, D2 = 2e-3;
+  EXPECT_NEAR(bendEnergy(q, kKb), kKb * theta * theta / D2, 1e-12 * kKb / D2);
+  const BendVector f = -bendGradient(q, kKb);
+  EXPECT_NEAR(f[11], kKb * theta * theta / (D2 * D2), 1e-9 * kKb / (D2 * D2));  // F_u1 = k_b theta^2 / D2^2
+  EXPECT_NEAR(f[3], -f[11], 1e-18);
+  // Straight: no energy, no force, and the Hessian is positive semi-definite (a minimum).
+  const BendVector straight = packBendStencil(Vec3(-1e-3, 0, 0), 0.1, Vec3::Zero(), 0.101, Vec3(1e-3, 0, 0), 0.102);
+  EXPECT_EQ(bendEnergy(straight, kKb), 0.0);
+  EXPECT_LT(bendGradient(straight, kKb).norm(), 1e-30);
+  EXPECT_GE(eigenvalues(bendHessian(straight, kKb)).minCoeff(), -1e-12 * bendHessian(straight, kKb).norm());
+  // Rotating the stencil rotates the gradient.
+  const Mat3 R = Eigen::AngleAxis<Real>(0.7, Vec3(1, 2, 3).normalized()).toRotationMatrix();
+  BendVector qr = q;
+  for (int node : {0, 4, 8}) qr.segment<3>(node) = R * q.segment<3>(node);
+  const BendVector gr = bendGradient(qr, kKb), g = bendGradient(q, kKb);
+  for (int node : {0, 4, 8}) EXPECT_LT((gr.segment<3>(node) - R * g.segment<3>(node)).norm(), 1e-12 * g.norm());
+}
+
+TEST(YarnBend, ClampedHessianIsPositiveSemiDefinite) {
+  std::mt19937 rng(19);
+  int indefinite = 0;
+  for (Real theta : {0.3, 0.8, 1.5, 2.5}) {
+    for (int trial = 0; trial < 5; ++trial) {
+      const BendVector q = bentStencil(rng, theta);
+      const Eigen::VectorXd full = eigenvalues(bendHessian(q, kKb)), clamped = eigenvalues(bendHessianClamped(q, kKb));
+      const Real scale = full.cwiseAbs().maxCoeff();
+      indefinite += full.minCoeff() < -1e-9 * scale;
+      EXPECT_GE(clamped.minCoeff(), -1e-9 * scale);
+    }
+  }
+  EXPECT_GT(indefinite, 0);  // the exact bending Hessian is indefinite for bent yarns
+}
+
 TEST(YarnGravity, GradientAndHessianMatchFiniteDifferences) {
   std::mt19937 rng(7);
   const Real rho = 5e-5;

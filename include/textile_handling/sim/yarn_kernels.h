@@ -50,6 +50,28 @@ SegmentVector gravityGradient(const SegmentVector& q, Real rho, const Vec3& g);
 /// d2V/dx0 du0 = d2V/dx1 du0 = +rho g / 2.
 SegmentMatrix gravityHessian(Real rho, const Vec3& g);
 
+using BendVector = Eigen::Matrix<Real, 12, 1>;  ///< (x2, u2, x0, u0, x1, u1)
+using BendMatrix = Eigen::Matrix<Real, 12, 12>;
+
+/// One bending stencil's coordinates: the centre node x0 between its neighbours x2 (lower arc length)
+/// and x1 along one yarn, packed as q = (x2, u2, x0, u0, x1, u1).
+BendVector packBendStencil(const Vec3& x2, Real u2, const Vec3& x0, Real u0, const Vec3& x1, Real u1);
+
+/// Bending at a node along one yarn (notes eq. 8): the discrete curvature 2 theta / (u1 - u2) with theta
+/// the angle between the segments a = x0 - x2 and b = x1 - x0, integrated over the two half segments:
+///   V = k_b theta^2 / (u1 - u2),  theta = atan2(|a x b|, a . b),  k_b = B pi R^2,
+/// zero rest curvature (yarns start straight). u0 does not appear. Sliding forces F_u1 = -F_u2 =
+/// k_b theta^2 / (u1 - u2)^2. Smooth through theta = 0: theta^2 is evaluated as F(S, c) with S = |a x b|^2
+/// and c = a . b (polynomials of the positions) and F's derivatives by series for small angles, so the
+/// Hessian is exact also for a straight yarn. A yarn folded back on itself (theta -> pi) is singular.
+Real bendEnergy(const BendVector& q, Real k_b);
+BendVector bendGradient(const BendVector& q, Real k_b);
+/// The exact Hessian (indefinite in general).
+BendMatrix bendHessian(const BendVector& q, Real k_b);
+/// The Hessian with the negative eigenvalues of its (a, b, u1 - u2) part (7 x 7) set to zero: positive
+/// semi-definite.
+BendMatrix bendHessianClamped(const BendVector& q, Real k_b);
+
 /// The segment's generalised mass matrix (notes eqs. 4-5): the kinetic energy of mass rho spread evenly
 /// along the segment, whose material point u moves with (eq. 2)
 ///   xdot(u) = (u1 - u)/D (x0dot - u0dot w) + (u - u0)/D (x1dot - u1dot w),
