@@ -14,6 +14,7 @@
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/memory_budget.h"
 #include "textile_handling/sim/text_input.h"
+#include "textile_handling/sim/woven_fabric.h"
 
 namespace textile_handling {
 namespace {
@@ -230,6 +231,13 @@ TEST(ShippedFiles, EverySceneAndMaterialIsValid) {
       EXPECT_NO_THROW(loadMaterialYaml(entry.path().string())) << entry.path();
     }
   }
+  int fabrics = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kSourceDir + "/data/fabrics")) {
+    if (entry.path().extension() != ".yaml") continue;
+    ++fabrics;
+    EXPECT_NO_THROW(loadWovenFabricYaml(entry.path().string())) << entry.path();
+  }
+  EXPECT_GE(fabrics, 3);
 }
 
 // ---- memory budget ------------------------------------------------------------------------------

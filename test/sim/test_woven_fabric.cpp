@@ -128,7 +128,7 @@ TEST(WovenFabricYaml, RoundTripAndDefaults) {
 
 TEST(WovenFabricYaml, BundledFabricsLoad) {
   for (const std::string w : {"plain", "twill_2_2", "satin_5"}) {
-    const WovenFabric f = loadWovenFabricYaml(std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/materials/woven_" + w + ".yaml");
+    const WovenFabric f = loadWovenFabricYaml(std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/data/fabrics/" + w + ".yaml");
     EXPECT_EQ(f.weave.name, w);
     EXPECT_EQ(f.weave.warp_on_top, namedWeave(w).warp_on_top);
     EXPECT_EQ(f.yarn_radius_m, WovenFabric().yarn_radius_m);
