@@ -1,8 +1,7 @@
-// Tests for sim/yarn_kernels.h: stretch and gravity against finite differences, the stretch forces of
-// the notes, the clamped Hessian's definiteness, gravity sliding material down a hanging yarn, and the
+// Tests for sim/yarn_kernels.h: stretch, bending and gravity against finite differences, the forces of
+// the notes, the clamped Hessians' definiteness, gravity sliding material down a hanging yarn, and the
 // segment mass matrix (symmetry, rank 6 of 8, null motion, kinetic energy, a positive definite crossing).
-// GCC 12 reports a -Wmaybe-uninitialized false positive inside Eigen's SelfAdjointEigenSolver
-// (tridiagonalisation); silence it for this file only (it must precede the first Eigen include).
+// The eigenvalue checks trip GCC 12's -Wmaybe-uninitialized false positive in Eigen (as in yarn_kernels.cpp).
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
@@ -31,10 +30,12 @@ SegmentVector randomSegment(std::mt19937& rng, Real stretch_lo = 0.7, Real stret
   return packSegment(x0, u0, x0 + st(rng) * D * dir, u0 + D);
 }
 
-SegmentVector numericGradient(const std::function<Real(const SegmentVector&)>& f, const SegmentVector& q, Real h) {
-  SegmentVector g;
-  for (int k = 0; k < 8; ++k) {
-    SegmentVector a = q, b = q;
+template <int N>
+Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
+                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
+  Eigen::Matrix<Real, N, 1> g;
+  for (int k = 0; k < N; ++k) {
+    Eigen::Matrix<Real, N, 1> a = q, b = q;
     a[k] += h;
     b[k] -= h;
     g[k] = (f(a) - f(b)) / (2 * h);
@@ -42,10 +43,12 @@ SegmentVector numericGradient(const std::function<Real(const SegmentVector&)>& f
   return g;
 }
 
-SegmentMatrix numericJacobian(const std::function<SegmentVector(const SegmentVector&)>& f, const SegmentVector& q, Real h) {
-  SegmentMatrix J;
-  for (int k = 0; k < 8; ++k) {
-    SegmentVector a = q, b = q;
+template <int N>
+Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
+                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
+  Eigen::Matrix<Real, N, N> J;
+  for (int k = 0; k < N; ++k) {
+    Eigen::Matrix<Real, N, 1> a = q, b = q;
     a[k] += h;
     b[k] -= h;
     J.col(k) = (f(a) - f(b)) / (2 * h);
@@ -60,10 +63,10 @@ TEST(YarnStretch, GradientAndHessianMatchFiniteDifferences) {
   for (int trial = 0; trial < 40; ++trial) {
     const SegmentVector q = randomSegment(rng);
     const SegmentVector g = stretchGradient(q, kKs);
-    const SegmentVector gn = numericGradient([](const SegmentVector& p) { return stretchEnergy(p, kKs); }, q, 1e-8);
+    const SegmentVector gn = numericGradientN<8>([](const SegmentVector& p) { return stretchEnergy(p, kKs); }, q, 1e-8);
     EXPECT_LT((g - gn).norm(), 1e-5 * std::max<Real>(1, g.norm())) << "trial " << trial;
     const SegmentMatrix H = stretchHessian(q, kKs);
-    const SegmentMatrix Hn = numericJacobian([](const SegmentVector& p) { return stretchGradient(p, kKs); }, q, 1e-9);
+    const SegmentMatrix Hn = numericJacobianN<8>([](const SegmentVector& p) { return stretchGradient(p, kKs); }, q, 1e-9);
     EXPECT_LT((H - Hn).norm(), 1e-5 * H.norm()) << "trial " << trial;
     EXPECT_LT((H - H.transpose()).norm(), 1e-12 * H.norm());
     // Moving the whole segment, or sliding both ends equally, changes nothing.
@@ -114,32 +117,6 @@ BendVector bentStencil(std::mt19937& rng, Real theta) {
   const Real la = len(rng), lb = len(rng), u2 = 0.05 * (unit(rng) + 1);
   const Vec3 x2 = x0 - la * e1, x1 = x0 + lb * (std::cos(theta) * e1 + std::sin(theta) * e2);
   return packBendStencil(x2, u2, x0, u2 + len(rng), x1, u2 + len(rng) + len(rng));
-}
-
-template <int N>
-Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, 1> g;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    g[k] = (f(a) - f(b)) / (2 * h);
-  }
-  return g;
-}
-
-template <int N>
-Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, N> J;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    J.col(k) = (f(a) - f(b)) / (2 * h);
-  }
-  return J;
 }
 
 TEST(YarnBend, GradientAndHessianMatchFiniteDifferencesFromStraightToSharp) {
@@ -218,9 +195,9 @@ TEST(YarnGravity, GradientAndHessianMatchFiniteDifferences) {
   for (int trial = 0; trial < 20; ++trial) {
     const SegmentVector q = randomSegment(rng);
     const SegmentVector grad = gravityGradient(q, rho, g);
-    const SegmentVector gn = numericGradient([&](const SegmentVector& p) { return gravityEnergy(p, rho, g); }, q, 1e-7);
+    const SegmentVector gn = numericGradientN<8>([&](const SegmentVector& p) { return gravityEnergy(p, rho, g); }, q, 1e-7);
     EXPECT_LT((grad - gn).norm(), 1e-9 * std::max<Real>(1e-6, grad.norm()) + 1e-15);
-    const SegmentMatrix Hn = numericJacobian([&](const SegmentVector& p) { return gravityGradient(p, rho, g); }, q, 1e-7);
+    const SegmentMatrix Hn = numericJacobianN<8>([&](const SegmentVector& p) { return gravityGradient(p, rho, g); }, q, 1e-7);
     EXPECT_LT((gravityHessian(rho, g) - Hn).norm(), 1e-9);
   }
   // The position forces are the segment's weight, split between its nodes.
