@@ -83,6 +83,46 @@ Real yarnSheetEnergy(const YarnSheet& sheet, const WovenFabric& fabric, const Ve
   return energy;
 }
 
+Eigen::SparseMatrix<Real> yarnSheetHessian(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q, const Vec3& g,
+                                           bool clamped) {
+  const Real r2 = fabric.yarn_radius_m * fabric.yarn_radius_m;
+  const Real k_s = fabric.young_modulus_pa * M_PI * r2, k_b = fabric.bending_modulus * M_PI * r2;
+  const Real rho = fabric.linear_density_kg_per_m;
+  std::vector<Eigen::Triplet<Real>> t;
+  // Scatters a kernel's Hessian over nodes `bases` (4 coordinates each: position and `slide`).
+  auto scatter = [&](const auto& h, const std::size_t* bases, int nodes, int slide) {
+    for (int r = 0; r < 4 * nodes; ++r)
+      for (int c = 0; c < 4 * nodes; ++c) {
+        if (h(r, c) == 0) continue;
+        const std::size_t dr = bases[r / 4] + (r % 4 == 3 ? static_cast<std::size_t>(slide) : static_cast<std::size_t>(r % 4));
+        const std::size_t dc = bases[c / 4] + (c % 4 == 3 ? static_cast<std::size_t>(slide) : static_cast<std::size_t>(c % 4));
+        t.emplace_back(static_cast<int>(dr), static_cast<int>(dc), h(r, c));
+      }
+  };
+  const yarn::SegmentMatrix h_gravity = yarn::gravityHessian(rho, g);
+  forEachTerm(
+      sheet,
+      [&](const YarnPiece& p, std::size_t k) {
+        const int slide = slideOffset(p);
+        const yarn::SegmentVector s = segmentCoordinates(q, p, k, slide);
+        const yarn::SegmentMatrix h =
+            (clamped ? yarn::stretchHessianClamped(s, k_s) : yarn::stretchHessian(s, k_s)) + h_gravity;
+        const std::size_t bases[2] = {kYarnDofsPerNode * p.nodes[k], kYarnDofsPerNode * p.nodes[k + 1]};
+        scatter(h, bases, 2, slide);
+      },
+      [&](const YarnPiece& p, std::size_t k) {
+        const int slide = slideOffset(p);
+        const std::size_t bases[3] = {kYarnDofsPerNode * p.nodes[k - 1], kYarnDofsPerNode * p.nodes[k],
+                                      kYarnDofsPerNode * p.nodes[k + 1]};
+        const yarn::BendVector b = yarn::packBendStencil(q.segment<3>(bases[0]), q[bases[0] + slide], q.segment<3>(bases[1]),
+                                                         q[bases[1] + slide], q.segment<3>(bases[2]), q[bases[2] + slide]);
+        scatter(clamped ? yarn::bendHessianClamped(b, k_b) : yarn::bendHessian(b, k_b), bases, 3, slide);
+      });
+  Eigen::SparseMatrix<Real> H(static_cast<Eigen::Index>(sheet.dofCount()), static_cast<Eigen::Index>(sheet.dofCount()));
+  H.setFromTriplets(t.begin(), t.end());
+  return H;
+}
+
 Eigen::SparseMatrix<Real> yarnSheetMass(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q) {
   std::vector<Eigen::Triplet<Real>> t;
   std::vector<char> held(sheet.dofCount(), 0);

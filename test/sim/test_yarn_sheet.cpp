@@ -71,6 +71,41 @@ TEST(YarnSheet, GradientMatchesFiniteDifferences) {
   }
 }
 
+TEST(YarnSheet, HessianMatchesFiniteDifferencesAndClampedIsSemiDefinite) {
+  const YarnSheet s = smallSheet();
+  WovenFabric f;
+  f.young_modulus_pa = 1e5;
+  std::mt19937 rng(43);
+  std::uniform_real_distribution<Real> unit(-1, 1);
+  VecX q = s.rest;
+  for (std::size_t n = 0; n < s.nodeCount(); ++n) {
+    for (int c = 0; c < 3; ++c) q[5 * n + c] += 1e-4 * unit(rng);
+    if (n < s.grid.crossings.size())
+      for (int c = 3; c < 5; ++c) q[5 * n + c] += 5e-5 * unit(rng);
+  }
+  const Vec3 g(0, 0, -kGravity);
+  const Eigen::MatrixXd H = Eigen::MatrixXd(yarnSheetHessian(s, f, q, g));
+  EXPECT_LT((H - H.transpose()).norm(), 1e-12 * H.norm());
+  const Real h = 1e-9;
+  Eigen::MatrixXd Hn(q.size(), q.size());
+  for (Eigen::Index k = 0; k < q.size(); ++k) {
+    VecX a = q, b = q, ga, gb;
+    a[k] += h;
+    b[k] -= h;
+    yarnSheetEnergy(s, f, a, g, &ga);
+    yarnSheetEnergy(s, f, b, g, &gb);
+    Hn.col(k) = (ga - gb) / (2 * h);
+  }
+  EXPECT_LT((H - Hn).norm(), 1e-5 * H.norm());
+  // Without gravity, the clamped Hessian is positive semi-definite; the exact one here is not.
+  const Eigen::VectorXd exact = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(yarnSheetHessian(s, f, q, Vec3::Zero())))
+                                    .eigenvalues();
+  const Eigen::VectorXd clamped =
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(Eigen::MatrixXd(yarnSheetHessian(s, f, q, Vec3::Zero(), true))).eigenvalues();
+  EXPECT_LT(exact.minCoeff(), -1e-6 * exact.cwiseAbs().maxCoeff());
+  EXPECT_GE(clamped.minCoeff(), -1e-9 * clamped.cwiseAbs().maxCoeff());
+}
+
 TEST(YarnSheet, MassHasTheYarnsWeightAndIsPositiveDefiniteOnFreeDofs) {
   const YarnSheet s = smallSheet();
   const WovenFabric f;

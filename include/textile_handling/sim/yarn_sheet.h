@@ -38,6 +38,13 @@ YarnSheet buildYarnSheet(YarnGrid grid);
 Real yarnSheetEnergy(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q, const Vec3& g,
                      VecX* gradient = nullptr);
 
+/// d2V/dq2 of yarnSheetEnergy() (5N x 5N, symmetric), assembled from the kernels' Hessians: exact, or
+/// with `clamped` each term's clamped Hessian (stretch: transverse factor held at >= 0; bending:
+/// negative eigenvalues dropped), which makes the sum positive semi-definite (gravity's Hessian is
+/// added as is: it is indefinite but small, rho g D against k_s / D).
+Eigen::SparseMatrix<Real> yarnSheetHessian(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q, const Vec3& g,
+                                           bool clamped = false);
+
 /// The generalised mass matrix M(q) (5N x 5N, symmetric): every segment's mass (notes eq. 5) with the
 /// linear density rho, on its nodes' positions and its yarn's sliding coordinate. Positive definite on
 /// the free DOFs of a sheet whose crossings all have a warp and a weft segment; held DOFs get no mass.
