@@ -99,6 +99,10 @@ WeavePattern customWeave(const std::vector<std::vector<int>>& matrix) {
   return w;
 }
 
+Real WovenFabric::stretchStiffness() const { return young_modulus_pa * M_PI * yarn_radius_m * yarn_radius_m; }
+
+Real WovenFabric::bendingStiffness() const { return bending_modulus * M_PI * yarn_radius_m * yarn_radius_m; }
+
 Real WovenFabric::jammingAngle() const {
   return 2 * std::asin(yarn_radius_m / std::min(warpSpacing(), weftSpacing()));
 }

@@ -1,8 +1,9 @@
 // The yarn-level model's state and assembled terms over a laid yarn grid (yarn_sheet.h).
 #include "textile_handling/sim/yarn_sheet.h"
 
-#include <algorithm>
-#include <cmath>
+#include <array>
+#include <utility>
+#include <vector>
 
 #include "textile_handling/sim/yarn_kernels.h"
 
@@ -10,21 +11,57 @@ namespace textile_handling {
 
 namespace {
 
-// The sliding coordinate of a piece's yarn within a node's five: u (3) for a warp, v (4) for a weft.
-int slideOffset(const YarnPiece& p) { return p.warp ? 3 : 4; }
+// The coordinates a kernel sees at one of its nodes: the position and its yarn's sliding coordinate, u
+// (offset 3) for a warp, v (4) for a weft. A kernel over n nodes sees 4 n coordinates in that order
+// (yarn_kernels.h: (x0, u0, x1, u1) for a segment, (x2, u2, x0, u0, x1, u1) for a bending stencil).
+template <int Nodes>
+using StencilDofs = std::array<std::size_t, 4 * Nodes>;
 
-// Calls segment(piece, k) for every segment (k, k + 1) and bend(piece, k) for every interior node k.
+template <int Nodes>
+StencilDofs<Nodes> stencilDofs(const YarnPiece& p, std::size_t first) {
+  StencilDofs<Nodes> d;
+  for (int n = 0; n < Nodes; ++n) {
+    const std::size_t base = kYarnDofsPerNode * p.nodes[first + static_cast<std::size_t>(n)];
+    for (int c = 0; c < 3; ++c) d[4 * n + c] = base + static_cast<std::size_t>(c);
+    d[4 * n + 3] = base + (p.warp ? 3 : 4);
+  }
+  return d;
+}
+
+// Calls segment(dofs) for every segment of every yarn piece and bend(dofs) for every node between two.
 template <class Segment, class Bend>
 void forEachTerm(const YarnSheet& sheet, Segment segment, Bend bend) {
   for (const YarnPiece& p : sheet.grid.pieces) {
-    for (std::size_t k = 0; k + 1 < p.nodes.size(); ++k) segment(p, k);
-    for (std::size_t k = 1; k + 1 < p.nodes.size(); ++k) bend(p, k);
+    for (std::size_t k = 0; k + 1 < p.nodes.size(); ++k) segment(stencilDofs<2>(p, k));
+    for (std::size_t k = 1; k + 1 < p.nodes.size(); ++k) bend(stencilDofs<3>(p, k - 1));
   }
 }
 
-yarn::SegmentVector segmentCoordinates(const VecX& q, const YarnPiece& p, std::size_t k, int slide) {
-  const std::size_t a = kYarnDofsPerNode * p.nodes[k], b = kYarnDofsPerNode * p.nodes[k + 1];
-  return yarn::packSegment(q.segment<3>(a), q[a + slide], q.segment<3>(b), q[b + slide]);
+template <int Nodes>
+Eigen::Matrix<Real, 4 * Nodes, 1> gather(const VecX& q, const StencilDofs<Nodes>& d) {
+  Eigen::Matrix<Real, 4 * Nodes, 1> v;
+  for (int i = 0; i < 4 * Nodes; ++i) v[i] = q[static_cast<Eigen::Index>(d[i])];
+  return v;
+}
+
+template <int Nodes>
+void scatterAdd(const Eigen::Matrix<Real, 4 * Nodes, 1>& v, const StencilDofs<Nodes>& d, VecX* out) {
+  for (int i = 0; i < 4 * Nodes; ++i) (*out)[static_cast<Eigen::Index>(d[i])] += v[i];
+}
+
+// Appends m's non-zero entries as triplets; `keep(dof)` false drops a row or column (held DOFs).
+template <int Nodes, class Keep>
+void scatterTriplets(const Eigen::Matrix<Real, 4 * Nodes, 4 * Nodes>& m, const StencilDofs<Nodes>& d, Keep keep,
+                     std::vector<Eigen::Triplet<Real>>* t) {
+  for (int r = 0; r < 4 * Nodes; ++r)
+    for (int c = 0; c < 4 * Nodes; ++c)
+      if (m(r, c) != 0 && keep(d[r]) && keep(d[c])) t->emplace_back(static_cast<int>(d[r]), static_cast<int>(d[c]), m(r, c));
+}
+
+Eigen::SparseMatrix<Real> sparseFrom(const YarnSheet& sheet, const std::vector<Eigen::Triplet<Real>>& t) {
+  Eigen::SparseMatrix<Real> M(static_cast<Eigen::Index>(sheet.dofCount()), static_cast<Eigen::Index>(sheet.dofCount()));
+  M.setFromTriplets(t.begin(), t.end());
+  return M;
 }
 
 }  // namespace
@@ -46,107 +83,56 @@ YarnSheet buildYarnSheet(YarnGrid grid) {
 }
 
 Real yarnSheetEnergy(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q, const Vec3& g, VecX* gradient) {
-  const Real r2 = fabric.yarn_radius_m * fabric.yarn_radius_m;
-  const Real k_s = fabric.young_modulus_pa * M_PI * r2, k_b = fabric.bending_modulus * M_PI * r2;
-  const Real rho = fabric.linear_density_kg_per_m;
+  const Real k_s = fabric.stretchStiffness(), k_b = fabric.bendingStiffness(), rho = fabric.linear_density_kg_per_m;
   if (gradient) *gradient = VecX::Zero(q.size());
   Real energy = 0;
   forEachTerm(
       sheet,
-      [&](const YarnPiece& p, std::size_t k) {
-        const int slide = slideOffset(p);
-        const yarn::SegmentVector s = segmentCoordinates(q, p, k, slide);
+      [&](const StencilDofs<2>& d) {
+        const yarn::SegmentVector s = gather<2>(q, d);
         energy += yarn::stretchEnergy(s, k_s) + yarn::gravityEnergy(s, rho, g);
-        if (!gradient) return;
-        const yarn::SegmentVector gs = yarn::stretchGradient(s, k_s) + yarn::gravityGradient(s, rho, g);
-        for (int node = 0; node < 2; ++node) {
-          const std::size_t base = kYarnDofsPerNode * p.nodes[k + node];
-          gradient->segment<3>(base) += gs.segment<3>(4 * node);
-          (*gradient)[base + slide] += gs[4 * node + 3];
-        }
+        if (gradient) scatterAdd<2>(yarn::stretchGradient(s, k_s) + yarn::gravityGradient(s, rho, g), d, gradient);
       },
-      [&](const YarnPiece& p, std::size_t k) {
-        const int slide = slideOffset(p);
-        const std::size_t n2 = kYarnDofsPerNode * p.nodes[k - 1], n0 = kYarnDofsPerNode * p.nodes[k],
-                          n1 = kYarnDofsPerNode * p.nodes[k + 1];
-        const yarn::BendVector b = yarn::packBendStencil(q.segment<3>(n2), q[n2 + slide], q.segment<3>(n0), q[n0 + slide],
-                                                         q.segment<3>(n1), q[n1 + slide]);
+      [&](const StencilDofs<3>& d) {
+        const yarn::BendVector b = gather<3>(q, d);
         energy += yarn::bendEnergy(b, k_b);
-        if (!gradient) return;
-        const yarn::BendVector gb = yarn::bendGradient(b, k_b);
-        const std::size_t bases[3] = {n2, n0, n1};
-        for (int node = 0; node < 3; ++node) {
-          gradient->segment<3>(bases[node]) += gb.segment<3>(4 * node);
-          (*gradient)[bases[node] + slide] += gb[4 * node + 3];
-        }
+        if (gradient) scatterAdd<3>(yarn::bendGradient(b, k_b), d, gradient);
       });
   return energy;
 }
 
 Eigen::SparseMatrix<Real> yarnSheetHessian(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q, const Vec3& g,
                                            bool clamped) {
-  const Real r2 = fabric.yarn_radius_m * fabric.yarn_radius_m;
-  const Real k_s = fabric.young_modulus_pa * M_PI * r2, k_b = fabric.bending_modulus * M_PI * r2;
-  const Real rho = fabric.linear_density_kg_per_m;
+  const Real k_s = fabric.stretchStiffness(), k_b = fabric.bendingStiffness();
+  const yarn::SegmentMatrix h_gravity = yarn::gravityHessian(fabric.linear_density_kg_per_m, g);
+  auto all = [](std::size_t) { return true; };
   std::vector<Eigen::Triplet<Real>> t;
-  // Scatters a kernel's Hessian over nodes `bases` (4 coordinates each: position and `slide`).
-  auto scatter = [&](const auto& h, const std::size_t* bases, int nodes, int slide) {
-    for (int r = 0; r < 4 * nodes; ++r)
-      for (int c = 0; c < 4 * nodes; ++c) {
-        if (h(r, c) == 0) continue;
-        const std::size_t dr = bases[r / 4] + (r % 4 == 3 ? static_cast<std::size_t>(slide) : static_cast<std::size_t>(r % 4));
-        const std::size_t dc = bases[c / 4] + (c % 4 == 3 ? static_cast<std::size_t>(slide) : static_cast<std::size_t>(c % 4));
-        t.emplace_back(static_cast<int>(dr), static_cast<int>(dc), h(r, c));
-      }
-  };
-  const yarn::SegmentMatrix h_gravity = yarn::gravityHessian(rho, g);
   forEachTerm(
       sheet,
-      [&](const YarnPiece& p, std::size_t k) {
-        const int slide = slideOffset(p);
-        const yarn::SegmentVector s = segmentCoordinates(q, p, k, slide);
-        const yarn::SegmentMatrix h =
-            (clamped ? yarn::stretchHessianClamped(s, k_s) : yarn::stretchHessian(s, k_s)) + h_gravity;
-        const std::size_t bases[2] = {kYarnDofsPerNode * p.nodes[k], kYarnDofsPerNode * p.nodes[k + 1]};
-        scatter(h, bases, 2, slide);
+      [&](const StencilDofs<2>& d) {
+        const yarn::SegmentVector s = gather<2>(q, d);
+        const yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(s, k_s) : yarn::stretchHessian(s, k_s);
+        scatterTriplets<2>(h + h_gravity, d, all, &t);
       },
-      [&](const YarnPiece& p, std::size_t k) {
-        const int slide = slideOffset(p);
-        const std::size_t bases[3] = {kYarnDofsPerNode * p.nodes[k - 1], kYarnDofsPerNode * p.nodes[k],
-                                      kYarnDofsPerNode * p.nodes[k + 1]};
-        const yarn::BendVector b = yarn::packBendStencil(q.segment<3>(bases[0]), q[bases[0] + slide], q.segment<3>(bases[1]),
-                                                         q[bases[1] + slide], q.segment<3>(bases[2]), q[bases[2] + slide]);
-        scatter(clamped ? yarn::bendHessianClamped(b, k_b) : yarn::bendHessian(b, k_b), bases, 3, slide);
+      [&](const StencilDofs<3>& d) {
+        const yarn::BendVector b = gather<3>(q, d);
+        scatterTriplets<3>(clamped ? yarn::bendHessianClamped(b, k_b) : yarn::bendHessian(b, k_b), d, all, &t);
       });
-  Eigen::SparseMatrix<Real> H(static_cast<Eigen::Index>(sheet.dofCount()), static_cast<Eigen::Index>(sheet.dofCount()));
-  H.setFromTriplets(t.begin(), t.end());
-  return H;
+  return sparseFrom(sheet, t);
 }
 
 Eigen::SparseMatrix<Real> yarnSheetMass(const YarnSheet& sheet, const WovenFabric& fabric, const VecX& q) {
-  std::vector<Eigen::Triplet<Real>> t;
   std::vector<char> held(sheet.dofCount(), 0);
   for (std::size_t d : sheet.held_dofs) held[d] = 1;
+  auto free = [&](std::size_t dof) { return !held[dof]; };
+  std::vector<Eigen::Triplet<Real>> t;
   forEachTerm(
       sheet,
-      [&](const YarnPiece& p, std::size_t k) {
-        const int slide = slideOffset(p);
-        const yarn::SegmentMatrix m = yarn::segmentMass(segmentCoordinates(q, p, k, slide), fabric.linear_density_kg_per_m);
-        std::size_t dof[8];
-        for (int node = 0; node < 2; ++node) {
-          const std::size_t base = kYarnDofsPerNode * p.nodes[k + node];
-          for (int c = 0; c < 3; ++c) dof[4 * node + c] = base + c;
-          dof[4 * node + 3] = base + slide;
-        }
-        for (int r = 0; r < 8; ++r)
-          for (int c = 0; c < 8; ++c)
-            if (!held[dof[r]] && !held[dof[c]] && m(r, c) != 0)
-              t.emplace_back(static_cast<int>(dof[r]), static_cast<int>(dof[c]), m(r, c));
+      [&](const StencilDofs<2>& d) {
+        scatterTriplets<2>(yarn::segmentMass(gather<2>(q, d), fabric.linear_density_kg_per_m), d, free, &t);
       },
-      [](const YarnPiece&, std::size_t) {});
-  Eigen::SparseMatrix<Real> M(static_cast<Eigen::Index>(sheet.dofCount()), static_cast<Eigen::Index>(sheet.dofCount()));
-  M.setFromTriplets(t.begin(), t.end());
-  return M;
+      [](const StencilDofs<3>&) {});
+  return sparseFrom(sheet, t);
 }
 
 }  // namespace textile_handling

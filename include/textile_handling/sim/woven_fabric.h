@@ -62,6 +62,10 @@ struct WovenFabric {
 
   Real warpSpacing() const { return 1 / warp_density_per_m; }
   Real weftSpacing() const { return 1 / weft_density_per_m; }
+  /// k_s = Y pi R^2 [N] (notes eq. 7).
+  Real stretchStiffness() const;
+  /// k_b = B pi R^2 [N m^2] (notes eq. 8).
+  Real bendingStiffness() const;
   /// The jamming angle phi_j = 2 asin(R / L) for the smaller spacing L [rad] (notes eq. 11).
   Real jammingAngle() const;
 };
