@@ -74,6 +74,13 @@ void ModelOptionReader::readBool(const std::string& key, bool* value) {
   else fail(key, "must be true or false, not '" + *t + "'");
 }
 
+void ModelOptionReader::readText(const std::string& key, std::string* value) {
+  const std::string* t = take(key, "text");
+  if (!t) return;
+  if (t->empty()) fail(key, "must not be empty");
+  *value = *t;
+}
+
 void ModelOptionReader::readReal(const std::string& key, Real min, bool min_exclusive, Real* value) {
   const std::string* t = take(key, "a number");
   if (!t) return;
@@ -109,7 +116,7 @@ bool ClothModelDescriptor::hasOptionKey(const std::string& key) const {
 
 ClothModelRegistry::ClothModelRegistry() {
   // The built-in models; a new built-in model adds its descriptor here (docs/architecture.md).
-  for (auto d : {particleModelDescriptor(), choiKoModelDescriptor()}) {
+  for (auto d : {particleModelDescriptor(), choiKoModelDescriptor(), yarnWovenModelDescriptor()}) {
     const std::string name = d.name;  // d is moved from below
     models_.emplace(name, std::make_unique<ClothModelDescriptor>(std::move(d)));
   }

@@ -1,52 +1,31 @@
 // The yarn-level model's state and assembled terms over a laid yarn grid (yarn_sheet.h).
 #include "textile_handling/sim/yarn_sheet.h"
 
+#include <algorithm>
 #include <array>
 #include <utility>
 #include <vector>
 
 #include "textile_handling/sim/yarn_kernels.h"
+#include "yarn_stencils.h"
 
 namespace textile_handling {
 
 namespace {
 
-// The coordinates a kernel sees at one of its nodes: the position and its yarn's sliding coordinate, u
-// (offset 3) for a warp, v (4) for a weft. A kernel over n nodes sees 4 n coordinates in that order
-// (yarn_kernels.h: (x0, u0, x1, u1) for a segment, (x2, u2, x0, u0, x1, u1) for a bending stencil).
-template <int Nodes>
-using StencilDofs = std::array<std::size_t, 4 * Nodes>;
+using yarn_stencil::Dofs;
+using yarn_stencil::gather;
+using yarn_stencil::scatterAdd;
 
 template <int Nodes>
-StencilDofs<Nodes> stencilDofs(const YarnPiece& p, std::size_t first) {
-  StencilDofs<Nodes> d;
-  for (int n = 0; n < Nodes; ++n) {
-    const std::size_t base = kYarnDofsPerNode * p.nodes[first + static_cast<std::size_t>(n)];
-    for (int c = 0; c < 3; ++c) d[4 * n + c] = base + static_cast<std::size_t>(c);
-    d[4 * n + 3] = base + (p.warp ? 3 : 4);
-  }
-  return d;
-}
+using StencilDofs = Dofs<Nodes>;
 
-// Calls segment(dofs) for every segment of every yarn piece and bend(dofs) for every node between two.
+// forEachTerm over the sheet, handing each term its DOFs.
 template <class Segment, class Bend>
 void forEachTerm(const YarnSheet& sheet, Segment segment, Bend bend) {
-  for (const YarnPiece& p : sheet.grid.pieces) {
-    for (std::size_t k = 0; k + 1 < p.nodes.size(); ++k) segment(stencilDofs<2>(p, k));
-    for (std::size_t k = 1; k + 1 < p.nodes.size(); ++k) bend(stencilDofs<3>(p, k - 1));
-  }
-}
-
-template <int Nodes>
-Eigen::Matrix<Real, 4 * Nodes, 1> gather(const VecX& q, const StencilDofs<Nodes>& d) {
-  Eigen::Matrix<Real, 4 * Nodes, 1> v;
-  for (int i = 0; i < 4 * Nodes; ++i) v[i] = q[static_cast<Eigen::Index>(d[i])];
-  return v;
-}
-
-template <int Nodes>
-void scatterAdd(const Eigen::Matrix<Real, 4 * Nodes, 1>& v, const StencilDofs<Nodes>& d, VecX* out) {
-  for (int i = 0; i < 4 * Nodes; ++i) (*out)[static_cast<Eigen::Index>(d[i])] += v[i];
+  yarn_stencil::forEachTerm(
+      sheet.grid, [&](const YarnPiece& p, std::size_t k) { segment(yarn_stencil::dofsOf<2>(p, k)); },
+      [&](const YarnPiece& p, std::size_t k) { bend(yarn_stencil::dofsOf<3>(p, k)); });
 }
 
 // Appends m's non-zero entries as triplets; `keep(dof)` false drops a row or column (held DOFs).
@@ -79,6 +58,14 @@ YarnSheet buildYarnSheet(YarnGrid grid) {
     s.held_dofs.push_back(kYarnDofsPerNode * n + 3);
     s.held_dofs.push_back(kYarnDofsPerNode * n + 4);
   }
+  // A piece that ends at a crossing (its end stub was dropped, or the grid has no end nodes) keeps
+  // that crossing's arc length on it: otherwise material could flow out of the yarn's last segment
+  // into yarn that is not simulated.
+  for (const YarnPiece& p : s.grid.pieces)
+    for (std::size_t k : {std::size_t{0}, p.nodes.size() - 1})
+      if (!s.grid.isEnd(p.nodes[k])) s.held_dofs.push_back(kYarnDofsPerNode * p.nodes[k] + (p.warp ? 3 : 4));
+  std::sort(s.held_dofs.begin(), s.held_dofs.end());
+  s.held_dofs.erase(std::unique(s.held_dofs.begin(), s.held_dofs.end()), s.held_dofs.end());
   return s;
 }
 

@@ -60,6 +60,8 @@ class ModelOptionReader {
   void readReal(const std::string& key, Real min, bool min_exclusive, Real* value);
   /// A finite number in [lo, hi] (hi exclusive when `hi_exclusive`).
   void readRealInRange(const std::string& key, Real lo, Real hi, bool hi_exclusive, Real* value);
+  /// Non-empty text (a file path, a name).
+  void readText(const std::string& key, std::string* value);
   /// One of the names in `choices` (name -> value).
   template <typename T>
   void readChoice(const std::string& key, const std::vector<std::pair<std::string, T>>& choices, T* value) {
@@ -149,5 +151,6 @@ ClothModelSpec settlingModelSpec(const std::string& model, Real settle_damping_p
 /// The built-in models' registrations (each in its model's source file).
 ClothModelDescriptor particleModelDescriptor();
 ClothModelDescriptor choiKoModelDescriptor();
+ClothModelDescriptor yarnWovenModelDescriptor();
 
 }  // namespace textile_handling

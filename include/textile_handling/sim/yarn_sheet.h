@@ -19,7 +19,8 @@ constexpr int kYarnDofsPerNode = 5;
 /// Every node of a YarnGrid with 5 coordinates (x, y, z, u, v), node k at [5k, 5k + 5). A crossing's u
 /// and v are its warp's and weft's arc lengths. An end node belongs to one yarn: its arc length on that
 /// yarn is fixed at the yarn's end (notes 2.1) and its other sliding coordinate is unused; both are held
-/// (`held_dofs`), so an end is a 3-DOF node padded to 5 (notes 9.6).
+/// (`held_dofs`), so an end is a 3-DOF node padded to 5 (notes 9.6). A piece that ends at a crossing
+/// (no end node) holds its sliding coordinate at that crossing, so no yarn material leaves the sheet.
 struct YarnSheet {
   YarnGrid grid;
   VecX rest;                          ///< 5N: the flat sheet at z = 0 in the outline frame

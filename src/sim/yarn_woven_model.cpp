@@ -1,0 +1,320 @@
+// The yarn-level woven cloth model (yarn_woven_model.h).
+#include "textile_handling/sim/yarn_woven_model.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include "textile_handling/sim/sim_errors.h"
+#include "textile_handling/sim/yarn_kernels.h"
+#include "yarn_stencils.h"
+
+namespace textile_handling {
+
+// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
+// slots of every node pair (row-major, n x n), and the node-local offset of the sliding coordinate it
+// uses (3 = u for a warp, 4 = v for a weft).
+struct YarnWovenModel::Stencil {
+  int nodes = 0;
+  std::array<Index, 3> node{};
+  std::array<std::size_t, 12> dof{};
+  std::array<Index, 9> slot{};
+  int slide = 3;
+};
+
+namespace {
+
+constexpr int kB = kYarnDofsPerNode;
+
+}  // namespace
+
+// The first 4 n DOFs of a stencil of n nodes, in the kernels' order.
+template <int Nodes>
+yarn_stencil::Dofs<Nodes> YarnWovenModel::dofsOf(const Stencil& s) {
+  yarn_stencil::Dofs<Nodes> d;
+  std::copy(s.dof.begin(), s.dof.begin() + 4 * Nodes, d.begin());
+  return d;
+}
+
+namespace {
+
+std::vector<std::pair<Index, Index>> runsOf(const ParticleTopology& t, int forward, int backward) {
+  // (first particle, length) of every maximal run of `forward` neighbours.
+  std::vector<std::pair<Index, Index>> runs;
+  for (Index p = 0; p < t.size(); ++p) {
+    if (t.neighbour[p][backward] >= 0) continue;  // not a run's start
+    Index len = 1;
+    for (Index q = t.neighbour[p][forward]; q >= 0; q = t.neighbour[q][forward]) ++len;
+    runs.emplace_back(p, len);
+  }
+  return runs;
+}
+
+}  // namespace
+
+YarnGrid yarnGridOnParticles(const ParticleTopology& topology, const WeavePattern& weave) {
+  if (topology.size() == 0) throw SimError("yarn grid: the particle grid is empty");
+  YarnGrid g;
+  g.warp_spacing_m = g.weft_spacing_m = topology.spacing;
+  int min_row = topology.grid[0][0], min_col = topology.grid[0][1], max_row = min_row, max_col = min_col;
+  for (const auto& rc : topology.grid) {
+    min_row = std::min(min_row, rc[0]), max_row = std::max(max_row, rc[0]);
+    min_col = std::min(min_col, rc[1]), max_col = std::max(max_col, rc[1]);
+  }
+  g.warp_lines = static_cast<std::size_t>(max_row - min_row + 1);
+  g.weft_lines = static_cast<std::size_t>(max_col - min_col + 1);
+  g.crossings.resize(static_cast<std::size_t>(topology.size()));
+  for (Index p = 0; p < topology.size(); ++p) {
+    YarnCrossing& c = g.crossings[static_cast<std::size_t>(p)];
+    c.warp = static_cast<std::size_t>(topology.grid[p][0] - min_row);
+    c.weft = static_cast<std::size_t>(topology.grid[p][1] - min_col);
+    c.position = Vec2(topology.grid[p][1], topology.grid[p][0]) * topology.spacing;
+    c.warp_on_top = weave.warpOnTop(c.warp, c.weft);
+  }
+  for (int dir = 0; dir < 2; ++dir) {  // warp along right (0), weft along up (1)
+    for (const auto& [first, len] : runsOf(topology, dir, dir + 2)) {
+      YarnPiece piece;
+      piece.warp = dir == 0;
+      Index p = first;
+      piece.line = piece.warp ? g.crossings[static_cast<std::size_t>(p)].warp : g.crossings[static_cast<std::size_t>(p)].weft;
+      for (Index k = 0; k < len; ++k, p = topology.neighbour[p][dir]) {
+        const Vec2& pos = g.crossings[static_cast<std::size_t>(p)].position;
+        piece.nodes.push_back(static_cast<std::size_t>(p));
+        piece.arc_length_m.push_back(piece.warp ? pos.x() : pos.y());
+      }
+      g.pieces.push_back(std::move(piece));
+    }
+  }
+  return g;
+}
+
+WovenFabric yarnBundleFabric(const WovenFabric& fabric, Real spacing) {
+  validateWovenFabric(fabric);
+  if (!(spacing > 0) || !std::isfinite(spacing))
+    throw SimError("yarn bundle: spacing " + std::to_string(spacing) + " m must be finite and > 0");
+  const Real n = spacing * 0.5 * (fabric.warp_density_per_m + fabric.weft_density_per_m);
+  WovenFabric b = fabric;
+  b.warp_density_per_m = b.weft_density_per_m = 1 / spacing;
+  b.yarn_radius_m = n * fabric.yarn_radius_m;
+  // k_s = Y pi R^2, k_b = B pi R^2, k_x = S R^2 scale with R^2 = n^2 R0^2: divide the moduli by n so the
+  // stiffnesses are n times the real yarn's.
+  b.young_modulus_pa = fabric.young_modulus_pa / n;
+  b.bending_modulus = fabric.bending_modulus / n;
+  b.shear_modulus_pa = fabric.shear_modulus_pa / n;
+  b.linear_density_kg_per_m = n * fabric.linear_density_kg_per_m;
+  return b;
+}
+
+YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOptions options)
+    : sheet_(std::move(sheet)), fabric_(std::move(fabric)), options_(std::move(options)),
+      gravity_(0, 0, options_.gravity ? -kGravity : 0) {
+  validateWovenFabric(fabric_);
+  const std::size_t n = sheet_.nodeCount(), dofs = sheet_.dofCount();
+  if (n == 0) throw SimError("yarn_woven: the yarn sheet has no node");
+  held_.assign(dofs, 0);
+  for (std::size_t d : sheet_.held_dofs) held_[d] = 1;
+  arc_offset_ = sheet_.rest;
+  for (std::size_t k = 0; k < n; ++k) arc_offset_.segment<3>(static_cast<Eigen::Index>(kB * k)).setZero();
+
+  // Stencils, the couplings of the block pattern (segments, bending's outer pair) and the crossing's
+  // diagonal neighbours (reserved for the shear terms, which couple a warp and a weft neighbour).
+  std::vector<std::pair<Index, Index>> couplings;
+  std::vector<std::array<Index, 4>> around(n, {-1, -1, -1, -1});  // warp prev, next, weft prev, next
+  auto make = [&](const YarnPiece& p, std::size_t first, int nodes) {
+    Stencil s;
+    s.nodes = nodes;
+    s.slide = p.warp ? 3 : 4;
+    for (int k = 0; k < nodes; ++k) s.node[static_cast<std::size_t>(k)] = static_cast<Index>(p.nodes[first + static_cast<std::size_t>(k)]);
+    if (nodes == 2) {
+      const auto d = yarn_stencil::dofsOf<2>(p, first);
+      std::copy(d.begin(), d.end(), s.dof.begin());
+    } else {
+      const auto d = yarn_stencil::dofsOf<3>(p, first);
+      std::copy(d.begin(), d.end(), s.dof.begin());
+    }
+    return s;
+  };
+  yarn_stencil::forEachTerm(
+      sheet_.grid,
+      [&](const YarnPiece& p, std::size_t k) {
+        segments_.push_back(make(p, k, 2));
+        const Index a = static_cast<Index>(p.nodes[k]), b = static_cast<Index>(p.nodes[k + 1]);
+        couplings.emplace_back(a, b);
+        const int o = p.warp ? 0 : 2;
+        around[static_cast<std::size_t>(a)][o + 1] = b;
+        around[static_cast<std::size_t>(b)][o] = a;
+      },
+      [&](const YarnPiece& p, std::size_t k) {
+        bends_.push_back(make(p, k, 3));
+        couplings.emplace_back(static_cast<Index>(p.nodes[k]), static_cast<Index>(p.nodes[k + 2]));
+      });
+  if (segments_.empty()) throw SimError("yarn_woven: the yarn sheet has no segment");
+  for (const auto& a : around)
+    for (int i : {0, 1})
+      for (int j : {2, 3})
+        if (a[i] >= 0 && a[j] >= 0) couplings.emplace_back(a[i], a[j]);
+  pattern_ = BlockPattern(static_cast<Index>(n), kB, couplings);
+  for (auto* list : {&segments_, &bends_})
+    for (Stencil& s : *list)
+      for (int i = 0; i < s.nodes; ++i)
+        for (int j = 0; j < s.nodes; ++j) s.slot[static_cast<std::size_t>(i * s.nodes + j)] = pattern_.find(s.node[i], s.node[j]);
+  scratch_ = BlockSparseMatrix(&pattern_);
+
+  // Lumped estimate: half of each segment's rest mass to each of its nodes, on all five DOFs.
+  const Real rho = fabric_.linear_density_kg_per_m;
+  lumped_ = VecX::Zero(static_cast<Eigen::Index>(dofs));
+  for (const Stencil& s : segments_) {
+    const Real m = 0.5 * rho * (sheet_.rest[static_cast<Eigen::Index>(s.dof[7])] - sheet_.rest[static_cast<Eigen::Index>(s.dof[3])]);
+    for (int k = 0; k < 2; ++k) lumped_.segment<kB>(kB * s.node[static_cast<std::size_t>(k)]).array() += m;
+    total_mass_ += 2 * m;
+  }
+  for (std::size_t k = 0; k < n; ++k)
+    if (!(lumped_[static_cast<Eigen::Index>(kB * k)] > 0))
+      throw SimError("yarn_woven: node " + std::to_string(k) + " lies on no yarn segment (a crossing without yarns)");
+}
+
+template <int Nodes, class Matrix>
+void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a) const {
+  for (int r = 0; r < 4 * Nodes; ++r) {
+    if (held_[s.dof[static_cast<std::size_t>(r)]]) continue;
+    const int lr = r % 4 < 3 ? r % 4 : s.slide;
+    for (int c = 0; c < 4 * Nodes; ++c) {
+      if (m(r, c) == 0 || held_[s.dof[static_cast<std::size_t>(c)]]) continue;
+      const int lc = c % 4 < 3 ? c % 4 : s.slide;
+      a.block(s.slot[static_cast<std::size_t>((r / 4) * Nodes + c / 4)])[lr * kB + lc] += scale * m(r, c);
+    }
+  }
+}
+
+void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, bool with_gravity, Real scale,
+                                     BlockSparseMatrix& a) const {
+  const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
+  const yarn::SegmentMatrix h_gravity = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
+  const bool gravity = with_gravity && options_.gravity;
+  for (const Stencil& s : segments_) {
+    const auto dofs = dofsOf<2>(s);
+    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
+    yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
+    if (gravity) h += h_gravity;
+    if (h.allFinite()) scatterBlocks<2>(h, s, scale, a);
+  }
+  for (const Stencil& s : bends_) {
+    const auto dofs = dofsOf<3>(s);
+    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
+    const yarn::BendMatrix h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
+    if (h.allFinite()) scatterBlocks<3>(h, s, scale, a);
+  }
+}
+
+ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
+  ForceReport report;
+  const VecX q = kernelCoordinates(x);
+  VecX grad = VecX::Zero(q.size());
+  const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
+  for (const Stencil& s : segments_) {
+    const auto dofs = dofsOf<2>(s);
+    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
+    yarn::SegmentVector g = yarn::stretchGradient(e, k_s);
+    if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
+    if (!(e[7] - e[3] > 0) || !g.allFinite()) {
+      ++report.degenerate_terms;  // material slid out of the segment, or a zero-length segment
+      continue;
+    }
+    yarn_stencil::scatterAdd<2>(g, dofs, &grad);
+  }
+  for (const Stencil& s : bends_) {
+    const auto dofs = dofsOf<3>(s);
+    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
+    const yarn::BendVector g = yarn::bendGradient(e, k_b);
+    if (!(e[11] - e[3] > 0) || !g.allFinite()) {
+      ++report.degenerate_terms;
+      continue;
+    }
+    yarn_stencil::scatterAdd<3>(g, dofs, &grad);
+  }
+  f = -grad;
+
+  // Rayleigh damping, F_d = -(alpha M(x) + beta K(x)) v with K the clamped elastic Hessian (notes 2.5).
+  const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
+  scratch_.setZero();
+  if (alpha > 0) addMassMatrix(x, alpha, scratch_);
+  if (beta > 0) assembleHessian(q, true, false, beta, scratch_);
+  if (alpha > 0 || beta > 0) {
+    VecX damping;
+    scratch_.multiply(v, damping);
+    f -= damping;
+  }
+  for (std::size_t d = 0; d < held_.size(); ++d)
+    if (held_[d]) f[static_cast<Eigen::Index>(d)] = 0;
+  if (jac) {
+    jac->dfdx.setZero();
+    assembleHessian(q, !options_.exact_hessian, true, -1, jac->dfdx);
+    std::transform(scratch_.values().begin(), scratch_.values().end(), jac->dfdv.values().begin(),
+                   [](Real a) { return -a; });
+    // The held DOFs' mass entries are not damping: a held DOF has no force.
+    for (std::size_t d = 0; d < held_.size(); ++d)
+      if (held_[d]) {
+        const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
+        jac->dfdv.block(pattern_.diagonal(node))[c * kB + c] = 0;
+      }
+  }
+  return report;
+}
+
+Real YarnWovenModel::potentialEnergy(const VecX& x) const {
+  return yarnSheetEnergy(sheet_, fabric_, kernelCoordinates(x), gravity_);
+}
+
+Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {
+  const VecX q = kernelCoordinates(x);
+  Real e = 0;
+  for (const Stencil& s : segments_)
+    e += yarn::gravityEnergy(yarn_stencil::gather<2>(q, dofsOf<2>(s)),
+                             fabric_.linear_density_kg_per_m, gravity_);
+  return e;
+}
+
+Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
+  const VecX q = kernelCoordinates(x);
+  Real worst = 0;
+  for (const Stencil& s : segments_) {
+    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
+    const Real ratio = (e.segment<3>(4) - e.segment<3>(0)).norm() / (e[7] - e[3]);
+    worst = std::max(worst, std::isfinite(ratio) && ratio >= 0 ? ratio : std::numeric_limits<Real>::infinity());
+  }
+  return worst;
+}
+
+void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
+  const VecX q = kernelCoordinates(x);
+  for (const Stencil& s : segments_) {
+    const auto dofs = dofsOf<2>(s);
+    scatterBlocks<2>(yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m), s, scale, a);
+  }
+  for (std::size_t d = 0; d < held_.size(); ++d)
+    if (held_[d]) {
+      const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
+      a.block(pattern_.diagonal(node))[c * kB + c] += scale * lumped_[static_cast<Eigen::Index>(d)];
+    }
+}
+
+void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const {
+  const VecX q = kernelCoordinates(x);
+  mv = VecX::Zero(v.size());
+  for (const Stencil& s : segments_) {
+    const auto dofs = dofsOf<2>(s);
+    yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
+    for (int k = 0; k < 8; ++k)
+      if (held_[s.dof[static_cast<std::size_t>(k)]]) local[k] = 0;
+    yarn::SegmentVector out = yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m) * local;
+    for (int k = 0; k < 8; ++k)
+      if (held_[s.dof[static_cast<std::size_t>(k)]]) out[k] = 0;
+    yarn_stencil::scatterAdd<2>(out, dofs, &mv);
+  }
+  for (std::size_t d = 0; d < held_.size(); ++d)
+    if (held_[d]) mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
+}
+
+}  // namespace textile_handling

@@ -1,0 +1,109 @@
+// Registration of the yarn-level woven cloth model (yarn_woven) with the cloth model registry: its
+// option keys (the fabric: a YAML file and/or one key per field; docs/yarn_model.md), their validation,
+// the factory on a particle grid (yarn bundles at the grid's spacing) and the parameter lines of a
+// database build.
+#include <sstream>
+
+#include "textile_handling/sim/cloth_model_registry.h"
+#include "textile_handling/sim/material.h"
+#include "textile_handling/sim/yarn_woven_model.h"
+
+namespace textile_handling {
+
+namespace {
+
+const std::vector<std::pair<std::string, std::string>> kWeaves = {
+    {"plain", "plain"}, {"twill_2_2", "twill_2_2"}, {"satin_5", "satin_5"}};
+
+// The fabric's numeric keys: option key, field, lower bound, exclusive.
+struct FabricKey {
+  const char* key;
+  Real WovenFabric::*field;
+  Real min;
+  bool exclusive;
+};
+const std::vector<FabricKey> kFabricKeys = {
+    {"warp_density_per_m", &WovenFabric::warp_density_per_m, 0, true},
+    {"weft_density_per_m", &WovenFabric::weft_density_per_m, 0, true},
+    {"yarn_radius_m", &WovenFabric::yarn_radius_m, 0, true},
+    {"young_modulus_pa", &WovenFabric::young_modulus_pa, 0, true},
+    {"bending_modulus", &WovenFabric::bending_modulus, 0, true},
+    {"shear_modulus_pa", &WovenFabric::shear_modulus_pa, 0, true},
+    {"sliding_friction", &WovenFabric::sliding_friction, 0, false},
+    {"damping_mass_per_s", &WovenFabric::damping_mass_per_s, 0, false},
+    {"damping_stiffness_s", &WovenFabric::damping_stiffness_s, 0, false},
+    {"linear_density_kg_per_m", &WovenFabric::linear_density_kg_per_m, 0, true},
+};
+
+struct ParsedYarnOptions {
+  YarnWovenOptions model;
+  std::string fabric_source = "defaults";  ///< the fabric file, or "defaults"
+};
+
+ParsedYarnOptions parseYarnOptions(const std::map<std::string, std::string>& values) {
+  ParsedYarnOptions o;
+  ModelOptionReader r("yarn_woven", values);
+  std::string file;
+  r.readText("fabric_file", &file);
+  if (!file.empty()) {
+    try {
+      o.model.fabric = loadWovenFabricYaml(file);
+    } catch (const std::exception& e) {
+      throw ClothModelError(std::string("'model.fabric_file' ") + e.what() + " (model yarn_woven)");
+    }
+    o.fabric_source = file;
+  }
+  std::string weave;
+  r.readChoice("weave", kWeaves, &weave);
+  if (!weave.empty()) o.model.fabric.weave = namedWeave(weave);
+  for (const FabricKey& k : kFabricKeys) r.readReal(k.key, k.min, k.exclusive, &(o.model.fabric.*k.field));
+  r.readBool("gravity", &o.model.gravity);
+  r.readBool("exact_hessian", &o.model.exact_hessian);
+  r.finish();
+  const std::string errors = wovenFabricErrors(o.model.fabric);
+  if (!errors.empty()) throw ClothModelError("model yarn_woven: fabric: " + errors);
+  return o;
+}
+
+std::string repeatText(const WeavePattern& w) {
+  std::ostringstream s;
+  for (std::size_t i = 0; i < w.warp_on_top.size(); ++i) {
+    if (i) s << '/';
+    for (bool b : w.warp_on_top[i]) s << (b ? '1' : '0');
+  }
+  return s.str();
+}
+
+}  // namespace
+
+ClothModelDescriptor yarnWovenModelDescriptor() {
+  ClothModelDescriptor d;
+  d.name = "yarn_woven";
+  d.summary = "yarn-level woven cloth: crossings with sliding yarns (docs/yarn_model.md)";
+  d.dofs_per_node = kYarnDofsPerNode;
+  d.option_keys = {{"fabric_file", "woven-fabric YAML (docs/yarn_model.md); the keys below override it"},
+                   {"weave", "plain | twill_2_2 | satin_5"}};
+  for (const FabricKey& k : kFabricKeys) d.option_keys.emplace_back(k.key, "fabric field (docs/yarn_model.md)");
+  d.option_keys.emplace_back("gravity", "true | false");
+  d.option_keys.emplace_back("exact_hessian", "true | false: exact instead of clamped Hessians in df/dx");
+  d.parse_options = [](const std::map<std::string, std::string>& v) { return std::any(parseYarnOptions(v)); };
+  d.create = [](const ParticleTopology& topology, const Material& /*material*/, const std::any& options) {
+    const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
+    YarnSheet sheet = buildYarnSheet(yarnGridOnParticles(topology, o.model.fabric.weave));
+    return std::unique_ptr<ClothModel>(
+        new YarnWovenModel(std::move(sheet), yarnBundleFabric(o.model.fabric, topology.spacing), o.model));
+  };
+  d.fingerprint = [](const std::any& options) {
+    const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
+    ClothModelFingerprint f;
+    f.lines.push_back("fabric: " + o.fabric_source);
+    f.lines.push_back("weave: " + o.model.fabric.weave.name + " " + repeatText(o.model.fabric.weave));
+    f.lines.push_back(std::string("forces: stretch bending") + (o.model.gravity ? " gravity" : "") + " rayleigh_damping");
+    f.lines.push_back(std::string("hessian: ") + (o.model.exact_hessian ? "exact" : "clamped"));
+    for (const FabricKey& k : kFabricKeys) f.numbers.emplace_back(std::string("model_options.") + k.key, o.model.fabric.*k.field);
+    return f;
+  };
+  return d;
+}
+
+}  // namespace textile_handling
