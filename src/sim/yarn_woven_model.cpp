@@ -161,6 +161,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
       for (int i = 0; i < s.nodes; ++i)
         for (int j = 0; j < s.nodes; ++j) s.slot[static_cast<std::size_t>(i * s.nodes + j)] = pattern_.find(s.node[i], s.node[j]);
   scratch_ = BlockSparseMatrix(&pattern_);
+  buildCrossingTerms(around);
 
   // Lumped estimate: half of each segment's rest mass to each of its nodes, on all five DOFs.
   const Real rho = fabric_.linear_density_kg_per_m;
@@ -235,12 +236,21 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     yarn_stencil::scatterAdd<3>(g, dofs, &grad);
   }
   f = -grad;
+  // The normal compression is lagged: evaluated at the first state the model sees and then once per
+  // accepted step (acceptStep), never inside a step.
+  if (compression_.empty()) updateCompression(q);
+  const bool clamped = !options_.exact_hessian;
+  addCrossingForces(q, v, &f, nullptr, nullptr, clamped, false, 1);
 
-  // Rayleigh damping, F_d = -(alpha M(x) + beta K(x)) v with K the clamped elastic Hessian (notes 2.5).
+  // Rayleigh damping, F_d = -(alpha M(x) + beta K(x)) v with K the clamped Hessian of the elastic terms
+  // (stretch, bending, shear, contact; notes 2.5).
   const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
   scratch_.setZero();
   if (alpha > 0) addMassMatrix(x, alpha, scratch_);
-  if (beta > 0) assembleHessian(q, true, false, beta, scratch_);
+  if (beta > 0) {
+    assembleHessian(q, true, false, beta, scratch_);
+    addCrossingForces(q, v, nullptr, &scratch_, nullptr, true, true, -beta);
+  }
   if (alpha > 0 || beta > 0) {
     VecX damping;
     scratch_.multiply(v, damping);
@@ -250,7 +260,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     if (held_[d]) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
     jac->dfdx.setZero();
-    assembleHessian(q, !options_.exact_hessian, true, -1, jac->dfdx);
+    assembleHessian(q, clamped, true, -1, jac->dfdx);
     std::transform(scratch_.values().begin(), scratch_.values().end(), jac->dfdv.values().begin(),
                    [](Real a) { return -a; });
     // The held DOFs' mass entries are not damping: a held DOF has no force.
@@ -259,12 +269,14 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
         const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
         jac->dfdv.block(pattern_.diagonal(node))[c * kB + c] = 0;
       }
+    addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, false, 1);
   }
   return report;
 }
 
 Real YarnWovenModel::potentialEnergy(const VecX& x) const {
-  return yarnSheetEnergy(sheet_, fabric_, kernelCoordinates(x), gravity_);
+  const VecX q = kernelCoordinates(x);
+  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + crossingEnergy(q);
 }
 
 Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {

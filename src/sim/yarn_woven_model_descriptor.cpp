@@ -57,6 +57,15 @@ ParsedYarnOptions parseYarnOptions(const std::map<std::string, std::string>& val
   r.readChoice("weave", kWeaves, &weave);
   if (!weave.empty()) o.model.fabric.weave = namedWeave(weave);
   for (const FabricKey& k : kFabricKeys) r.readReal(k.key, k.min, k.exclusive, &(o.model.fabric.*k.field));
+  YarnCrossingOptions& c = o.model.crossing;
+  r.readBool("shear", &c.shear);
+  r.readBool("friction", &c.friction);
+  r.readBool("contact", &c.contact);
+  r.readReal("friction_stiffness_factor", 0, true, &c.friction_stiffness_factor);
+  r.readReal("shear_friction_stiffness_factor", 0, true, &c.shear_friction_stiffness_factor);
+  r.readReal("jamming_gain", 0, false, &c.jamming_gain);
+  r.readReal("compression_gain_per_n", 0, false, &c.compression_gain_per_n);
+  r.readReal("contact_stiffness_factor", 0, true, &c.contact_stiffness_factor);
   r.readBool("gravity", &o.model.gravity);
   r.readBool("exact_hessian", &o.model.exact_hessian);
   r.finish();
@@ -84,21 +93,37 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
   d.option_keys = {{"fabric_file", "woven-fabric YAML (docs/yarn_model.md); the keys below override it"},
                    {"weave", "plain | twill_2_2 | satin_5"}};
   for (const FabricKey& k : kFabricKeys) d.option_keys.emplace_back(k.key, "fabric field (docs/yarn_model.md)");
+  for (const char* k : {"shear", "friction", "contact"}) d.option_keys.emplace_back(k, "true | false: crossing term on or off");
+  d.option_keys.emplace_back("friction_stiffness_factor", "k_f = factor k_s / L, > 0 (default 1)");
+  d.option_keys.emplace_back("shear_friction_stiffness_factor", "k_fphi = factor k_x L, > 0 (default 10)");
+  d.option_keys.emplace_back("jamming_gain", "c_j >= 0 (default 1000)");
+  d.option_keys.emplace_back("compression_gain_per_n", "c_n [1/N] >= 0 of k_x (1 + c_n F_n) (default 250)");
+  d.option_keys.emplace_back("contact_stiffness_factor", "k_c = factor k_s / L^2, > 0 (default 1)");
   d.option_keys.emplace_back("gravity", "true | false");
   d.option_keys.emplace_back("exact_hessian", "true | false: exact instead of clamped Hessians in df/dx");
   d.parse_options = [](const std::map<std::string, std::string>& v) { return std::any(parseYarnOptions(v)); };
   d.create = [](const ParticleTopology& topology, const Material& /*material*/, const std::any& options) {
     const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
+    YarnWovenOptions model = o.model;
+    model.bundle_size = topology.spacing * 0.5 * (o.model.fabric.warp_density_per_m + o.model.fabric.weft_density_per_m);
     YarnSheet sheet = buildYarnSheet(yarnGridOnParticles(topology, o.model.fabric.weave));
     return std::unique_ptr<ClothModel>(
-        new YarnWovenModel(std::move(sheet), yarnBundleFabric(o.model.fabric, topology.spacing), o.model));
+        new YarnWovenModel(std::move(sheet), yarnBundleFabric(o.model.fabric, topology.spacing), model));
   };
   d.fingerprint = [](const std::any& options) {
     const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
     ClothModelFingerprint f;
     f.lines.push_back("fabric: " + o.fabric_source);
     f.lines.push_back("weave: " + o.model.fabric.weave.name + " " + repeatText(o.model.fabric.weave));
-    f.lines.push_back(std::string("forces: stretch bending") + (o.model.gravity ? " gravity" : "") + " rayleigh_damping");
+    const YarnCrossingOptions& c = o.model.crossing;
+    f.lines.push_back(std::string("forces: stretch bending") + (o.model.gravity ? " gravity" : "") +
+                      (c.shear ? " shear" : "") + (c.friction ? " friction" : "") + (c.contact ? " contact" : "") +
+                      " rayleigh_damping");
+    f.numbers.emplace_back("model_options.friction_stiffness_factor", c.friction_stiffness_factor);
+    f.numbers.emplace_back("model_options.shear_friction_stiffness_factor", c.shear_friction_stiffness_factor);
+    f.numbers.emplace_back("model_options.jamming_gain", c.jamming_gain);
+    f.numbers.emplace_back("model_options.compression_gain_per_n", c.compression_gain_per_n);
+    f.numbers.emplace_back("model_options.contact_stiffness_factor", c.contact_stiffness_factor);
     f.lines.push_back(std::string("hessian: ") + (o.model.exact_hessian ? "exact" : "clamped"));
     for (const FabricKey& k : kFabricKeys) f.numbers.emplace_back(std::string("model_options.") + k.key, o.model.fabric.*k.field);
     return f;

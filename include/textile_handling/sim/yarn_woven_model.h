@@ -23,8 +23,29 @@
 
 namespace textile_handling {
 
+/// The constants of the crossing terms the source leaves open (notes section 9.1, 9.5), as factors of
+/// the fabric's own stiffnesses so that they keep their meaning for any yarn and bundle size.
+/// docs/yarn_model.md, "Crossing terms in the model".
+struct YarnCrossingOptions {
+  bool shear = true;             ///< shear with jamming (eq. 11) and shear friction (eq. 12)
+  bool friction = true;          ///< sliding friction (eq. 10) and shear friction (eq. 12)
+  bool contact = true;           ///< contact between neighbouring parallel yarns (eq. 13)
+  /// k_f = factor k_s / L: a crossing's stick spring is as stiff as one yarn segment in stretch.
+  Real friction_stiffness_factor = 1;
+  /// k_fphi = factor k_x L: the shear stick spring is this many times stiffer than elastic shear.
+  Real shear_friction_stiffness_factor = 10;
+  Real jamming_gain = 1000;      ///< c_j: the shear stiffness at phi = 0 is (1 + c_j) k
+  /// c_n [1/N] of k_x(F_n) = k_x (1 + c_n F_n) for one real crossing (a bundle uses c_n / n^2).
+  Real compression_gain_per_n = 250;
+  /// k_c = factor k_s / L^2 (the notes' "k_c ~ k_s / L" with the units of eq. 13).
+  Real contact_stiffness_factor = 1;
+};
+
 struct YarnWovenOptions {
   WovenFabric fabric;          ///< the real fabric: weave, yarn densities and yarn parameters
+  YarnCrossingOptions crossing;
+  /// Real yarns per simulated yarn (yarnBundleFabric()); 1 = every yarn simulated. Set by the factory.
+  Real bundle_size = 1;
   bool gravity = true;
   /// Jacobian df/dx from the kernels' exact Hessians (indefinite for compressed or bent yarns) instead
   /// of their clamped, positive semi-definite ones.
@@ -56,6 +77,16 @@ class YarnWovenModel : public ClothModel {
   const BlockPattern& jacobianPattern() const override { return pattern_; }
   ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
   Real potentialEnergy(const VecX& x) const override;
+  /// Commits the friction anchors (stick/slip, notes 3.4 and 3.6) and evaluates the normal compression
+  /// F_n of the new state (eq. 9), which the next step uses as a constant (lagged, notes 9.2).
+  void acceptStep(const VecX& x, const VecX& v) override;
+  /// [sliding anchors (2 per node), angle anchors (4 per crossing pair slot), F_n (per crossing), 1 if
+  /// F_n was evaluated].
+  std::vector<Real> internalState() const override;
+  bool setInternalState(const std::vector<Real>& state) override;
+  /// The lagged normal compression per crossing [N] (of the simulated bundle), empty before the first
+  /// force evaluation.
+  const std::vector<Real>& compression() const { return compression_; }
   /// Largest ratio of a segment's length to its rest length D = u1 - u0 (with the current slides).
   Real maxEdgeStretch(const VecX& x) const override;
 
@@ -77,7 +108,31 @@ class YarnWovenModel : public ClothModel {
 
  private:
   struct Stencil;  // DOFs and block slots of one kernel's stencil
+  /// One (warp segment, weft segment) pair at a crossing: nodes (crossing, warp neighbour, weft
+  /// neighbour), whether jamming applies, and the block slots of the 3 x 3 node pairs.
+  struct ShearPair {
+    std::array<Index, 3> node{};
+    bool interlaced = false;
+    std::array<Index, 9> slot{};
+  };
+  /// Two crossings neighbouring along one yarn: their sliding DOFs on it (lower arc length first), the
+  /// contact distance d and the block slots (00, 01, 10, 11).
+  struct ContactPair {
+    std::array<std::size_t, 2> dof{};
+    std::array<Index, 2> node{};
+    Real distance = 0;
+    std::array<Index, 4> slot{};
+  };
   void assembleHessian(const VecX& q, bool clamped, bool with_gravity, Real scale, BlockSparseMatrix& a) const;
+  // Crossing terms (yarn_woven_crossings.cpp).
+  void buildCrossingTerms(const std::vector<std::array<Index, 4>>& around);
+  void updateCompression(const VecX& q);
+  Real crossingEnergy(const VecX& q) const;
+  /// Adds the crossing terms' forces into f (all DOFs; held ones are zeroed by the caller) and, with
+  /// `dfdx` / `dfdv`, their Jacobians; with `conservative_only` only shear and contact (no friction),
+  /// scaled by `scale`, into `dfdx` (the damping stiffness).
+  void addCrossingForces(const VecX& q, const VecX& v, VecX* f, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv,
+                         bool clamped, bool conservative_only, Real scale) const;
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
@@ -93,6 +148,14 @@ class YarnWovenModel : public ClothModel {
   VecX arc_offset_;         ///< the flat arc lengths on the sliding DOFs, 0 on positions
   VecX lumped_;
   Real total_mass_ = 0;
+  // Crossing terms: stencils, constants, lagged compression and friction anchors.
+  std::vector<ShearPair> shear_pairs_;
+  std::vector<ContactPair> contacts_;
+  Real k_x_ = 0, k_f_ = 0, d_f_ = 0, k_fphi_ = 0, mu_phi_ = 0, c_n_ = 0, k_c_ = 0, spacing_ = 0;
+  WovenFabric compression_fabric_;     ///< bending scaled by n^3: a bundle crossing's n^2 real crimps
+  std::vector<Real> compression_;      ///< F_n per crossing, lagged
+  VecX slide_anchor_;                  ///< per DOF (sliding DOFs of crossings used), as displacements
+  std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
   mutable BlockSparseMatrix scratch_;  // damping stiffness and mass products
 };
 
