@@ -13,17 +13,6 @@
 
 namespace textile_handling {
 
-// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
-// slots of every node pair (row-major, n x n), and the node-local offset of the sliding coordinate it
-// uses (3 = u for a warp, 4 = v for a weft).
-struct YarnWovenModel::Stencil {
-  int nodes = 0;
-  std::array<Index, 3> node{};
-  std::array<std::size_t, 12> dof{};
-  std::array<Index, 9> slot{};
-  int slide = 3;
-};
-
 namespace {
 
 constexpr int kB = kYarnDofsPerNode;

@@ -107,7 +107,16 @@ class YarnWovenModel : public ClothModel {
   bool isHeld(Index dof) const { return held_[static_cast<std::size_t>(dof)] != 0; }
 
  private:
-  struct Stencil;  // DOFs and block slots of one kernel's stencil
+  /// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
+  /// slots of every node pair (row-major, n x n), and the node-local offset of the sliding coordinate
+  /// it uses (3 = u for a warp, 4 = v for a weft).
+  struct Stencil {
+    int nodes = 0;
+    std::array<Index, 3> node{};
+    std::array<std::size_t, 12> dof{};
+    std::array<Index, 9> slot{};
+    int slide = 3;
+  };
   /// One (warp segment, weft segment) pair at a crossing: nodes (crossing, warp neighbour, weft
   /// neighbour), whether jamming applies, and the block slots of the 3 x 3 node pairs.
   struct ShearPair {
