@@ -4,12 +4,43 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 namespace textile_handling {
+
+namespace {
+
+const cv::Scalar kInk(40, 40, 40);
+
+std::map<std::string, cv::Scalar> seriesColours(const std::vector<ChartPoint>& pts) {
+  static const cv::Scalar palette[] = {{200, 80, 30}, {30, 150, 30}, {30, 30, 200}, {160, 40, 160},
+                                       {0, 140, 200}, {120, 120, 0}, {90, 90, 90},  {200, 0, 100}};
+  std::map<std::string, cv::Scalar> colour;
+  for (const auto& p : pts)
+    if (!colour.count(p.series)) colour[p.series] = palette[colour.size() % 8];
+  return colour;
+}
+
+// Frame, title, axis labels and the legend right of the plot area.
+void drawFrame(cv::Mat& img, int left, int top, int pw, int ph, const std::string& x_label, const std::string& y_label,
+               const std::string& title, const std::map<std::string, cv::Scalar>& colour) {
+  cv::rectangle(img, {left, top}, {left + pw, top + ph}, kInk);
+  cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.65, kInk, 1, cv::LINE_AA);
+  cv::putText(img, x_label, {left + pw / 2 - 80, img.rows - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, kInk, 1, cv::LINE_AA);
+  cv::putText(img, y_label, {10, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
+  int ly = top + 10;
+  for (const auto& [name, c] : colour) {
+    cv::circle(img, {left + pw + 25, ly}, 6, c, -1, cv::LINE_AA);
+    cv::putText(img, name, {left + pw + 38, ly + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
+    ly += 24;
+  }
+}
+
+}  // namespace
 
 bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& points, const std::string& x_label,
                       const std::string& y_label, const std::string& title, std::string* error) {
@@ -43,25 +74,55 @@ bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& po
     cv::putText(img, "1e" + std::to_string(static_cast<int>(e)), {left - 50, py(e) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
                 ink, 1, cv::LINE_AA);
   }
-  cv::rectangle(img, {left, top}, {left + pw, top + ph}, ink);
-  cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.65, ink, 1, cv::LINE_AA);
-  cv::putText(img, x_label, {left + pw / 2 - 80, H - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, ink, 1, cv::LINE_AA);
-  cv::putText(img, y_label, {10, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
-  static const cv::Scalar palette[] = {{200, 80, 30}, {30, 150, 30}, {30, 30, 200}, {160, 40, 160},
-                                       {0, 140, 200}, {120, 120, 0}, {90, 90, 90},  {200, 0, 100}};
-  std::map<std::string, cv::Scalar> colour;
-  for (const auto& p : pts)
-    if (!colour.count(p.series)) colour[p.series] = palette[colour.size() % 8];
+  const std::map<std::string, cv::Scalar> colour = seriesColours(pts);
+  drawFrame(img, left, top, pw, ph, x_label, y_label, title, colour);
   for (const auto& p : pts) {
     const cv::Point c(px(std::log10(p.x)), py(std::log10(p.y)));
-    cv::circle(img, c, 6, colour[p.series], -1, cv::LINE_AA);
-    cv::putText(img, p.label, {c.x + 8, c.y - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.33, colour[p.series], 1, cv::LINE_AA);
+    cv::circle(img, c, 6, colour.at(p.series), -1, cv::LINE_AA);
+    cv::putText(img, p.label, {c.x + 8, c.y - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.33, colour.at(p.series), 1, cv::LINE_AA);
   }
-  int ly = top + 10;
-  for (const auto& [name, c] : colour) {
-    cv::circle(img, {left + pw + 25, ly}, 6, c, -1, cv::LINE_AA);
-    cv::putText(img, name, {left + pw + 38, ly + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
-    ly += 24;
+  return writePngFile(path, img, "chart", error);
+}
+
+bool writeLineChart(const std::string& path, const std::vector<ChartPoint>& points, const std::string& x_label,
+                    const std::string& y_label, const std::string& title, std::string* error) {
+  std::vector<ChartPoint> pts;
+  for (const auto& p : points)
+    if (std::isfinite(p.x) && std::isfinite(p.y)) pts.push_back(p);
+  if (pts.empty()) {
+    if (error) *error = "chart: no finite points";
+    return false;
+  }
+  const int W = 1100, H = 720, left = 110, right = 330, top = 50, bottom = 70;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (const auto& p : pts) {
+    x0 = std::min(x0, p.x), x1 = std::max(x1, p.x), y0 = std::min(y0, p.y), y1 = std::max(y1, p.y);
+  }
+  const double mx = 0.05 * std::max(x1 - x0, 1e-300), my = 0.05 * std::max(y1 - y0, 1e-300);
+  x0 -= mx, x1 += mx, y0 -= my, y1 += my;
+  const int pw = W - left - right, ph = H - top - bottom;
+  auto px = [&](double x) { return left + static_cast<int>((x - x0) / (x1 - x0) * pw); };
+  auto py = [&](double y) { return top + ph - static_cast<int>((y - y0) / (y1 - y0) * ph); };
+  const cv::Scalar grid(225, 225, 225);
+  for (int k = 0; k <= 5; ++k) {
+    const double x = x0 + (x1 - x0) * k / 5, y = y0 + (y1 - y0) * k / 5;
+    char text[32];
+    cv::line(img, {px(x), top}, {px(x), top + ph}, grid);
+    std::snprintf(text, sizeof text, "%.3g", x);
+    cv::putText(img, text, {px(x) - 15, top + ph + 22}, cv::FONT_HERSHEY_SIMPLEX, 0.45, kInk, 1, cv::LINE_AA);
+    cv::line(img, {left, py(y)}, {left + pw, py(y)}, grid);
+    std::snprintf(text, sizeof text, "%.3g", y);
+    cv::putText(img, text, {left - 90, py(y) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45, kInk, 1, cv::LINE_AA);
+  }
+  if (y0 < 0 && y1 > 0) cv::line(img, {left, py(0)}, {left + pw, py(0)}, cv::Scalar(150, 150, 150));
+  const std::map<std::string, cv::Scalar> colour = seriesColours(pts);
+  drawFrame(img, left, top, pw, ph, x_label, y_label, title, colour);
+  for (std::size_t k = 0; k < pts.size(); ++k) {
+    const cv::Point c(px(pts[k].x), py(pts[k].y));
+    cv::circle(img, c, 3, colour.at(pts[k].series), -1, cv::LINE_AA);
+    if (k > 0 && pts[k - 1].series == pts[k].series)
+      cv::line(img, {px(pts[k - 1].x), py(pts[k - 1].y)}, c, colour.at(pts[k].series), 1, cv::LINE_AA);
   }
   return writePngFile(path, img, "chart", error);
 }

@@ -59,8 +59,8 @@ Vec3 chord(const YarnGrid& grid, const VecX& q, const YarnSlot& slot) {
 // +1 where the warp is on top at the crossing, -1 where the weft is.
 Real warpSide(const YarnGrid& grid, std::size_t crossing) { return grid.crossings[crossing].warp_on_top ? 1 : -1; }
 
-// Adds, for every crossing on `piece`, n . F of the piece's stretch force (uncrimped) and bending force
-// (crimped) on it into (*push)[crossing]; the caller flips the sign for a weft.
+// Adds, for every crossing on `piece`, n . F of the piece's stretch force (uncrimped) and the bending
+// force of the crimped stencil centred at it into (*push)[crossing]; the caller flips the sign for a weft.
 void addPieceNormalForces(const YarnSheet& sheet, const VecX& q, const YarnPiece& piece, const std::vector<Vec3>& N,
                           const std::vector<Vec3>& n, Real R, Real k_s, Real k_b, std::vector<Real>* push) {
   const YarnGrid& grid = sheet.grid;
@@ -84,7 +84,7 @@ void addPieceNormalForces(const YarnSheet& sheet, const VecX& q, const YarnPiece
   for (std::size_t k = 1; k + 1 < count; ++k) {
     const yarn::BendVector g = yarn::bendGradient(
         yarn::packBendStencil(crimped[k - 1], arc[k - 1], crimped[k], arc[k], crimped[k + 1], arc[k + 1]), k_b);
-    for (std::size_t j = 0; j < 3; ++j) force[k - 1 + j] -= g.segment<3>(static_cast<Eigen::Index>(4 * j));
+    force[k] -= g.segment<3>(4);  // only the stencil centred at the crossing (notes 9.4)
   }
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t node = piece.nodes[k];

@@ -96,7 +96,7 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
   for (const char* k : {"shear", "friction", "contact"}) d.option_keys.emplace_back(k, "true | false: crossing term on or off");
   d.option_keys.emplace_back("friction_stiffness_factor", "k_f = factor k_s / L, > 0 (default 1)");
   d.option_keys.emplace_back("shear_friction_stiffness_factor", "k_fphi = factor k_x L, > 0 (default 10)");
-  d.option_keys.emplace_back("jamming_gain", "c_j >= 0 (default 1000)");
+  d.option_keys.emplace_back("jamming_gain", "c_j >= 0 (default 1e5)");
   d.option_keys.emplace_back("compression_gain_per_n", "c_n [1/N] >= 0 of k_x (1 + c_n F_n) (default 250)");
   d.option_keys.emplace_back("contact_stiffness_factor", "k_c = factor k_s / L^2, > 0 (default 1)");
   d.option_keys.emplace_back("gravity", "true | false");

@@ -34,7 +34,9 @@ struct YarnCrossingOptions {
   Real friction_stiffness_factor = 1;
   /// k_fphi = factor k_x L: the shear stick spring is this many times stiffer than elastic shear.
   Real shear_friction_stiffness_factor = 10;
-  Real jamming_gain = 1000;      ///< c_j: the shear stiffness at phi = 0 is (1 + c_j) k
+  /// c_j: the shear stiffness at phi = 0 is (1 + c_j) k; 1e5 makes it 100 times k 10 % below phi_j, a
+  /// sharp knee (notes 3.5: "grows cubically").
+  Real jamming_gain = 1e5;
   /// c_n [1/N] of k_x(F_n) = k_x (1 + c_n F_n) for one real crossing (a bundle uses c_n / n^2).
   Real compression_gain_per_n = 250;
   /// k_c = factor k_s / L^2 (the notes' "k_c ~ k_s / L" with the units of eq. 13).

@@ -1,4 +1,4 @@
-// Log-log scatter charts for benchmarks (PNG via OpenCV, kept out of this header).
+// Log-log scatter and linear line charts for benchmarks (PNG via OpenCV, kept out of this header).
 #pragma once
 
 #include <string>
@@ -15,5 +15,10 @@ struct ChartPoint {
 /// Writes a log-log scatter chart; returns false with a message if nothing can be drawn or written.
 bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& points, const std::string& x_label,
                       const std::string& y_label, const std::string& title, std::string* error);
+
+/// Writes a chart with linear axes; consecutive points of one series are joined by lines (in the
+/// order given). Returns false with a message if nothing can be drawn or written.
+bool writeLineChart(const std::string& path, const std::vector<ChartPoint>& points, const std::string& x_label,
+                    const std::string& y_label, const std::string& title, std::string* error);
 
 }  // namespace textile_handling
