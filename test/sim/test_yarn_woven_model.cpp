@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <vector>
@@ -240,6 +242,48 @@ TEST(YarnWovenModel, OptionKeysAreValidated) {
   const ClothModelFingerprint plain = r.find("yarn_woven").fingerprint(r.parseOptions(yarnSpec()));
   EXPECT_NE(fp.lines, plain.lines);  // the weave is part of a build's parameters
   EXPECT_EQ(fp.numbers.size(), plain.numbers.size());
+}
+
+TEST(YarnWovenModel, SaveAndResumeCarriesTheFrictionAnchorsBitwise) {
+  ThreadScope threads(1);
+  DrapeSceneSpec s = sim_test_support::heldSquareSpec(0.03, 0.005);
+  s.model = yarnSpec();
+  s.settings.integrator = IntegratorType::kSemiImplicitEuler;
+  s.settings.policy = StepPolicy::kFixed;
+  s.settings.dt = 2e-3;
+  DrapeScene whole_scene = buildDrapeScene(s);
+  DrapeSimulation whole(*whole_scene.model, whole_scene.pins, s.settings, whole_scene.x0, whole_scene.v0);
+  whole.run(0.2);
+  DrapeScene scene = buildDrapeScene(s);
+  DrapeSimulation first(*scene.model, scene.pins, s.settings, scene.x0, scene.v0);
+  first.run(0.1);
+  const auto& yarn = dynamic_cast<const YarnWovenModel&>(*scene.model);
+  // By now the sheet hangs: shear friction has slipped (angle anchors moved off pi / 2); the state is
+  // [sliding anchors (2 per node), angle anchors, F_n per crossing, 1].
+  const std::vector<Real> state = yarn.internalState();
+  const std::size_t nodes = yarn.sheet().nodeCount(), crossings = yarn.sheet().grid.crossings.size();
+  ASSERT_GT(state.size(), 2 * nodes + crossings + 1);
+  Real turned = 0;
+  for (std::size_t k = 2 * nodes; k + crossings + 1 < state.size(); ++k) turned = std::max(turned, std::abs(state[k] - kPi / 2));
+  EXPECT_GT(turned, 1e-3);
+  EXPECT_EQ(state.back(), 1);
+  const std::string path = test_support::freshTempPath("yarn_woven", "state.txt");
+  first.save(path);
+  DrapeScene scene2 = buildDrapeScene(s);
+  DrapeSimulation second(*scene2.model, scene2.pins, s.settings, scene2.x0, scene2.v0);
+  second.load(path);
+  EXPECT_EQ(dynamic_cast<const YarnWovenModel&>(*scene2.model).internalState(), state);
+  second.run(0.2);
+  EXPECT_EQ(second.state(), whole.state());
+  std::remove(path.c_str());
+  // Malformed internal states are refused and change nothing.
+  YarnWovenModel& m2 = dynamic_cast<YarnWovenModel&>(*scene2.model);
+  const std::vector<Real> before = m2.internalState();
+  EXPECT_FALSE(m2.setInternalState({1.0, 2.0}));
+  std::vector<Real> bad = before;
+  bad[0] = std::nan("");
+  EXPECT_FALSE(m2.setInternalState(bad));
+  EXPECT_EQ(m2.internalState(), before);
 }
 
 TEST(YarnWovenModel, SquareHeldAtTwoCornersReachesRest) {
