@@ -112,8 +112,9 @@ Real YarnWovenModel::crossingEnergy(const VecX& q) const {
 }
 
 void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, BlockSparseMatrix* dfdx,
-                                       BlockSparseMatrix* dfdv, bool clamped, bool conservative_only, Real scale) const {
-  const bool friction = options_.crossing.friction && !conservative_only;
+                                       BlockSparseMatrix* dfdv, bool clamped, int terms, Real scale) const {
+  const bool friction = options_.crossing.friction && (terms & kFrictionTerms);
+  const bool conservative = terms & kConservativeTerms;
   auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor) {
     for (int a = 0; a < 3; ++a)
       for (int b = 0; b < 3; ++b) {
@@ -122,18 +123,18 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
           for (int c = 0; c < 3; ++c) blk[r * kB + c] += factor * m(3 * a + r, 3 * b + c);
       }
   };
-  for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
+  for (std::size_t k = 0; k < shear_pairs_.size() && (conservative || friction); ++k) {
     const ShearPair& p = shear_pairs_[k];
     const Real F_n = compression_.empty() ? 0 : compression_[static_cast<std::size_t>(p.node[0])];
     const yarn::ShearParameters s{yarn::shearStiffness(k_x_, c_n_, F_n), spacing_, fabric_.jammingAngle(),
                                   options_.crossing.jamming_gain, p.interlaced};
     const yarn::CrossingVector x = crossingStencil(q, p.node);
-    if (f) {
+    if (conservative && f) {
       const yarn::CrossingVector g = yarn::shearGradient(x, s);
       if (g.allFinite())
         for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) -= g.segment<3>(3 * a);
     }
-    if (dfdx) {
+    if (conservative && dfdx) {
       const yarn::CrossingMatrix h = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
       if (h.allFinite()) addPositions(p, h, -scale);
     }
@@ -145,6 +146,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
     if (dfdx) addPositions(p, fr.jacobian, scale);
   }
   for (const ContactPair& p : contacts_) {
+    if (!conservative) break;
     const Real u0 = q[static_cast<Eigen::Index>(p.dof[0])], u1 = q[static_cast<Eigen::Index>(p.dof[1])];
     if (u1 - u0 >= p.distance) continue;
     const yarn::ContactVector g = yarn::parallelContactGradient(u0, u1, k_c_, spacing_, p.distance);

@@ -150,6 +150,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
       for (int i = 0; i < s.nodes; ++i)
         for (int j = 0; j < s.nodes; ++j) s.slot[static_cast<std::size_t>(i * s.nodes + j)] = pattern_.find(s.node[i], s.node[j]);
   scratch_ = BlockSparseMatrix(&pattern_);
+  stiffness_ = BlockSparseMatrix(&pattern_);
   buildCrossingTerms(around);
 
   // Lumped estimate: half of each segment's rest mass to each of its nodes, on all five DOFs.
@@ -198,6 +199,12 @@ void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, bool with_grav
   }
 }
 
+void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
+  if (!options_.gravity) return;
+  const yarn::SegmentMatrix h = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
+  for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a);
+}
+
 ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
   ForceReport report;
   const VecX q = kernelCoordinates(x);
@@ -229,17 +236,23 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   // accepted step (acceptStep), never inside a step.
   if (compression_.empty()) updateCompression(q);
   const bool clamped = !options_.exact_hessian;
-  addCrossingForces(q, v, &f, nullptr, nullptr, clamped, false, 1);
+  addCrossingForces(q, v, &f, nullptr, nullptr, clamped, kAllCrossingTerms, 1);
 
-  // Rayleigh damping, F_d = -(alpha M(x) + beta K(x)) v with K the clamped Hessian of the elastic terms
-  // (stretch, bending, shear, contact; notes 2.5).
+  // The clamped Hessian K of the elastic terms (stretch, bending, shear, contact), assembled once: it is
+  // the stiffness of the Rayleigh damping F_d = -(alpha M(x) + beta K(x)) v (notes 2.5) and, with
+  // gravity's Hessian, minus the clamped df/dx.
   const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
-  scratch_.setZero();
-  if (alpha > 0) addMassMatrix(x, alpha, scratch_);
-  if (beta > 0) {
-    assembleHessian(q, true, false, beta, scratch_);
-    addCrossingForces(q, v, nullptr, &scratch_, nullptr, true, true, -beta);
+  const bool need_k = beta > 0 || (jac && clamped);
+  if (need_k) {
+    stiffness_.setZero();
+    assembleHessian(q, true, false, 1, stiffness_);
+    addCrossingForces(q, v, nullptr, &stiffness_, nullptr, true, kConservativeTerms, -1);
   }
+  scratch_.setZero();
+  if (beta > 0)
+    std::transform(stiffness_.values().begin(), stiffness_.values().end(), scratch_.values().begin(),
+                   [beta](Real k) { return beta * k; });
+  if (alpha > 0) addMassMatrix(x, alpha, scratch_);
   if (alpha > 0 || beta > 0) {
     VecX damping;
     scratch_.multiply(v, damping);
@@ -248,8 +261,15 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   for (std::size_t d = 0; d < held_.size(); ++d)
     if (held_[d]) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
-    jac->dfdx.setZero();
-    assembleHessian(q, clamped, true, -1, jac->dfdx);
+    if (clamped) {
+      std::transform(stiffness_.values().begin(), stiffness_.values().end(), jac->dfdx.values().begin(),
+                     [](Real k) { return -k; });
+      addGravityHessian(-1, jac->dfdx);
+    } else {
+      jac->dfdx.setZero();
+      assembleHessian(q, false, true, -1, jac->dfdx);
+      addCrossingForces(q, v, nullptr, &jac->dfdx, nullptr, false, kConservativeTerms, 1);
+    }
     std::transform(scratch_.values().begin(), scratch_.values().end(), jac->dfdv.values().begin(),
                    [](Real a) { return -a; });
     // The held DOFs' mass entries are not damping: a held DOF has no force.
@@ -258,7 +278,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
         const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
         jac->dfdv.block(pattern_.diagonal(node))[c * kB + c] = 0;
       }
-    addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, false, 1);
+    addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
   }
   return report;
 }

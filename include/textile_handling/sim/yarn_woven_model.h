@@ -139,11 +139,14 @@ class YarnWovenModel : public ClothModel {
   void buildCrossingTerms(const std::vector<std::array<Index, 4>>& around);
   void updateCompression(const VecX& q);
   Real crossingEnergy(const VecX& q) const;
-  /// Adds the crossing terms' forces into f (all DOFs; held ones are zeroed by the caller) and, with
-  /// `dfdx` / `dfdv`, their Jacobians; with `conservative_only` only shear and contact (no friction),
-  /// scaled by `scale`, into `dfdx` (the damping stiffness).
+  /// Which crossing terms addCrossingForces() adds.
+  enum CrossingTerms { kConservativeTerms = 1, kFrictionTerms = 2, kAllCrossingTerms = 3 };
+  /// Adds the chosen crossing terms' forces into f (all DOFs; held ones are zeroed by the caller) and,
+  /// with `dfdx` / `dfdv`, their Jacobians times `scale` (held rows and columns left out).
   void addCrossingForces(const VecX& q, const VecX& v, VecX* f, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv,
-                         bool clamped, bool conservative_only, Real scale) const;
+                         bool clamped, int terms, Real scale) const;
+  /// Adds scale times gravity's (constant) Hessian.
+  void addGravityHessian(Real scale, BlockSparseMatrix& a) const;
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
@@ -167,7 +170,8 @@ class YarnWovenModel : public ClothModel {
   std::vector<Real> compression_;      ///< F_n per crossing, lagged
   VecX slide_anchor_;                  ///< per DOF (sliding DOFs of crossings used), as displacements
   std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
-  mutable BlockSparseMatrix scratch_;  // damping stiffness and mass products
+  BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
+  BlockSparseMatrix scratch_;    // alpha M + beta K
 };
 
 }  // namespace textile_handling

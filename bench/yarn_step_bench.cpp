@@ -1,0 +1,199 @@
+// yarn_step_bench: cost per time step of the yarn_woven model against the number of crossings, on 1
+// and 2 threads, and the largest stable step (docs/yarn_model.md, "Cost per step").
+//
+//   yarn_step_bench [--out DIR] [--sides N1,N2,...] [--steps K] [--dt S] [--integrator NAME]
+//                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
+//
+// Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
+// from its two upper corners and released flat, K fixed steps of --dt (default 1 ms, the source's
+// step) with --integrator (default semi_implicit). For every size, one and two threads run
+// interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time per step and per
+// crossing-step, the split into assembly (forces and Jacobians) and solve, and the solver iterations
+// per step. Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each
+// fixed step of --stable-dts; stable = no divergence.
+//
+// Writes DIR/step_cost.csv, DIR/stable_step.csv and DIR/step_cost.png (microseconds per crossing-step
+// against crossings); prints the median per size and thread count and the largest stable step.
+// Benchmarks, not tests: timings vary up to 3x between machines and hours; compare the interleaved
+// thread counts as ratios. Set OMP_WAIT_POLICY=passive. Exit: 0 done, 2 usage, 4 output, 5 error.
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "textile_handling/bench/bench_chart.h"
+#include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/drape_simulation.h"
+
+using namespace textile_handling;
+
+namespace {
+
+std::vector<double> parseList(const std::string& text) {
+  std::vector<double> v;
+  std::stringstream s(text);
+  std::string item;
+  while (std::getline(s, item, ',')) v.push_back(std::atof(item.c_str()));
+  return v;
+}
+
+// N x N crossings at 1 mm, held at its two upper corners, flat at release.
+DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
+  const Real L = 1e-3, side = (side_crossings - 1) * L;
+  TextileOutline t;
+  t.name = "yarn_sheet";
+  t.outline = {Vec2(0, 0), Vec2(side, 0), Vec2(side, side), Vec2(0, side)};
+  DrapeSceneSpec s;
+  s.textile = t;
+  s.spacing = L;
+  s.hold = {HoldPoint{"", Vec2(0, side)}, HoldPoint{"", Vec2(side, side)}};
+  s.model = ClothModelSpec("yarn_woven");
+  s.settings.integrator = integrator;
+  s.settings.policy = StepPolicy::kFixed;
+  s.settings.dt = dt;
+  s.settings.max_time = until;
+  s.settings.rest_duration = 1e9;
+  s.settings.memory_budget_bytes = 8e9;
+  return s;
+}
+
+struct CostRow {
+  int side = 0, threads = 0, repeat = 0;
+  long crossings = 0, steps = 0;
+  double wall_ms_per_step = 0, us_per_crossing_step = 0, assembly_ms = 0, solve_ms = 0, iterations = 0;
+  bool diverged = false;
+};
+
+CostRow measure(int side, int threads, int repeat, int steps, Real dt, IntegratorType integrator) {
+  omp_set_num_threads(threads);
+  const DrapeSceneSpec spec = sheetSpec(side, integrator, dt, steps * dt * (1 + 1e-9));
+  DrapeScene scene = buildDrapeScene(spec);
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  const auto t0 = std::chrono::steady_clock::now();
+  const RunResult r = sim.run();
+  const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  CostRow row;
+  row.side = side, row.threads = threads, row.repeat = repeat;
+  row.crossings = scene.model->numNodes();
+  row.steps = std::max<long>(r.steps, 1);
+  row.wall_ms_per_step = wall / row.steps;
+  row.us_per_crossing_step = 1e3 * row.wall_ms_per_step / row.crossings;
+  row.assembly_ms = r.assembly_ms / row.steps;
+  row.solve_ms = r.solve_ms / row.steps;
+  row.iterations = static_cast<double>(r.solver_iterations) / row.steps;
+  row.diverged = r.diverged;
+  return row;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = "out/yarn_step_bench", integrator_name = "semi_implicit";
+  std::vector<double> sides = {32, 64, 128, 250}, stable_dts = {0.001, 0.002, 0.005, 0.01, 0.02, 0.05};
+  int steps = 10, repeats = 3, stable_side = 25;
+  Real dt = 1e-3, stable_time = 0.5;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) {
+      std::cerr << "yarn_step_bench: " << a << " needs a value (see the header of bench/yarn_step_bench.cpp)\n";
+      return 2;
+    }
+    const std::string v = argv[++i];
+    if (a == "--out") out = v;
+    else if (a == "--sides") sides = parseList(v);
+    else if (a == "--steps") steps = std::atoi(v.c_str());
+    else if (a == "--dt") dt = std::atof(v.c_str());
+    else if (a == "--integrator") integrator_name = v;
+    else if (a == "--repeats") repeats = std::atoi(v.c_str());
+    else if (a == "--stable-side") stable_side = std::atoi(v.c_str());
+    else if (a == "--stable-time") stable_time = std::atof(v.c_str());
+    else if (a == "--stable-dts") stable_dts = parseList(v);
+    else {
+      std::cerr << "yarn_step_bench: unknown option " << a << "\n";
+      return 2;
+    }
+  }
+  IntegratorType integrator;
+  try {
+    integrator = integratorFromString(integrator_name);
+  } catch (const std::exception& e) {
+    std::cerr << "yarn_step_bench: " << e.what() << "\n";
+    return 2;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(out, ec);
+  std::ofstream cost(out + "/step_cost.csv"), stable(out + "/stable_step.csv");
+  if (!cost || !stable) {
+    std::cerr << "yarn_step_bench: cannot write into " << out << "\n";
+    return 4;
+  }
+  cost << "side,crossings,threads,repeat,integrator,dt_s,steps,wall_ms_per_step,us_per_crossing_step,assembly_ms_per_step,"
+          "solve_ms_per_step,solver_iterations_per_step,diverged\n";
+  std::vector<ChartPoint> chart;
+  try {
+    for (double side_value : sides) {
+      const int side = static_cast<int>(side_value);
+      std::map<int, std::vector<double>> per_thread;
+      for (int r = 0; r < repeats; ++r)
+        for (int threads : {1, 2}) {
+          const CostRow row = measure(side, threads, r, steps, dt, integrator);
+          cost << row.side << ',' << row.crossings << ',' << row.threads << ',' << row.repeat << ',' << integrator_name << ','
+               << dt << ',' << row.steps << ',' << row.wall_ms_per_step << ',' << row.us_per_crossing_step << ','
+               << row.assembly_ms << ',' << row.solve_ms << ',' << row.iterations << ',' << (row.diverged ? 1 : 0) << '\n';
+          cost.flush();
+          per_thread[threads].push_back(row.us_per_crossing_step);
+          std::printf("side %d (%ld crossings), %d thread(s), repeat %d: %.3g us per crossing-step (assembly %.3g ms, solve "
+                      "%.3g ms, %.1f solver iterations per step)%s\n",
+                      side, row.crossings, threads, r, row.us_per_crossing_step, row.assembly_ms, row.solve_ms, row.iterations,
+                      row.diverged ? " DIVERGED" : "");
+          std::fflush(stdout);
+          chart.push_back({static_cast<double>(row.crossings), row.us_per_crossing_step, "",
+                           std::to_string(threads) + " thread" + (threads > 1 ? "s" : "")});
+        }
+      std::vector<double> ratios;
+      for (int r = 0; r < repeats; ++r) ratios.push_back(per_thread[2][r] / per_thread[1][r]);
+      std::sort(ratios.begin(), ratios.end());
+      std::printf("side %d: median %.3g (1 thread) and %.3g (2 threads) us per crossing-step; 2/1 thread ratio "
+                  "min %.3g median %.3g max %.3g\n",
+                  side, median(per_thread[1]), median(per_thread[2]), ratios.front(), median(ratios), ratios.back());
+    }
+    omp_set_num_threads(1);
+    stable << "side,crossings,dt_s,sim_time_s,stable,reason\n";
+    double largest = 0;
+    for (double h : stable_dts) {
+      const DrapeSceneSpec spec = sheetSpec(stable_side, integrator, h, stable_time);
+      DrapeScene scene = buildDrapeScene(spec);
+      DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+      const RunResult r = sim.run();
+      stable << stable_side << ',' << scene.model->numNodes() << ',' << h << ',' << r.sim_time << ',' << (r.diverged ? 0 : 1)
+             << ",\"" << r.divergence_reason << "\"\n";
+      if (!r.diverged) largest = std::max(largest, h);
+      std::printf("stable step: %d x %d crossings at dt %g s: %s\n", stable_side, stable_side, h,
+                  r.diverged ? ("diverged: " + r.divergence_reason).c_str() : "stable");
+    }
+    std::printf("largest stable step of the %d x %d sheet over %g s: %g s\n", stable_side, stable_side, stable_time, largest);
+  } catch (const std::exception& e) {
+    std::cerr << "yarn_step_bench: " << e.what() << "\n";
+    return 5;
+  }
+  std::string error;
+  if (!writeLogLogChart(out + "/step_cost.png", chart, "crossings", "microseconds per crossing-step",
+                        "yarn_woven: cost per step (" + integrator_name + ")", &error)) {
+    std::cerr << "yarn_step_bench: " << error << "\n";
+    return 4;
+  }
+  return 0;
+}
