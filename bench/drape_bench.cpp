@@ -81,6 +81,11 @@ std::string solverLabel(const DrapeSceneSpec& s) {
   if (s.settings.integrator == IntegratorType::kRK4) return "none";
   if (s.settings.integrator == IntegratorType::kBlockDiagonalEuler) return "block_3x3";
   char buf[96];
+  if (s.settings.integrator == IntegratorType::kBackwardEulerNewton) {
+    std::snprintf(buf, sizeof buf, "newton%d_tol%g_pcr_block_jacobi_tol%g", s.settings.solver.newton_max_iterations,
+                  s.settings.solver.newton_tolerance, s.settings.solver.relative_tolerance);
+    return buf;
+  }
   if (s.settings.solver.kind == LinearSolverKind::kDirect) return "direct_ldlt";
   std::snprintf(buf, sizeof buf, "cg_%s_tol%g%s", toString(s.settings.solver.preconditioner).c_str(),
                 s.settings.solver.relative_tolerance, s.settings.solver.warm_start ? "_warm" : "");
@@ -195,6 +200,13 @@ int benchMain(int argc, char** argv) {
        }},
       // The thesis rule from the thesis's mean step (1e-4 s).
       {"block_diagonal/thesis", integ(IntegratorType::kBlockDiagonalEuler, StepPolicy::kThesis, 1e-4)},
+      {"backward_euler_newton/error", integ(IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled, 1e-3)},
+      // Inexact Newton: loose PCR solves, Newton's residual test still bounds every step.
+      {"backward_euler_newton/error pcr 0.1", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled, 1e-3)(s);
+         s.settings.solver.relative_tolerance = 0.1;
+       }},
+      {"backward_euler_newton/thesis", integ(IntegratorType::kBackwardEulerNewton, StepPolicy::kThesis, 1e-3)},
       {"rk4/error tol 1e-5", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kRK4, StepPolicy::kErrorControlled, 1e-4)(s);
          s.settings.error_tolerance = 1e-5;
@@ -207,6 +219,11 @@ int benchMain(int argc, char** argv) {
       {"choi_ko semi_implicit/error fast", [&](DrapeSceneSpec& s) {
          integ(IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3)(s);
          useFastSolverSettings(s.settings);
+         s.model = settlingModelSpec("choi_ko", 4.0);
+         s.settings.max_time = 30.0;
+       }},
+      {"choi_ko backward_euler_newton/error", [&](DrapeSceneSpec& s) {
+         integ(IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled, 1e-3)(s);
          s.model = settlingModelSpec("choi_ko", 4.0);
          s.settings.max_time = 30.0;
        }},

@@ -157,6 +157,10 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
   }
   // Only when on, so that the parameter texts of builds without collision stay as they were.
   if (c.self_collision) t += "self_collision: v3\n";
+  // Newton's settings change the computed shapes only with that integrator (the other texts stay).
+  if (c.settings.integrator == IntegratorType::kBackwardEulerNewton)
+    t += "simulation.newton_max_iterations: " + std::to_string(c.settings.solver.newton_max_iterations) +
+         "\nsimulation.newton_tolerance: " + internal::fmt17(c.settings.solver.newton_tolerance) + "\n";
   if (c.start_tilt_deg != 0)
     t += "start_tilt_deg: " + internal::fmt17(c.start_tilt_deg) + "\nstart_tilt_axis_deg: " +
          internal::fmt17(c.start_tilt_axis_deg) + "\n";

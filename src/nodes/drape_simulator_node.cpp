@@ -53,6 +53,9 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   settings_.solver.relative_tolerance = positiveParam(pnh, "cg_tolerance", settings_.solver.relative_tolerance);
   if (!(settings_.solver.relative_tolerance < 1)) throw std::runtime_error("parameter ~cg_tolerance must be < 1");
   pnh.param("cg_warm_start", settings_.solver.warm_start, settings_.solver.warm_start);
+  settings_.solver.newton_tolerance = positiveParam(pnh, "newton_tolerance", settings_.solver.newton_tolerance);
+  settings_.solver.newton_max_iterations =
+      positiveIntParam(pnh, "newton_max_iterations", settings_.solver.newton_max_iterations);
   std::string preconditioner = toString(settings_.solver.preconditioner);
   pnh.param<std::string>("cg_preconditioner", preconditioner, preconditioner);
   std::string self_collision = "v3";

@@ -457,6 +457,11 @@ void parseSolverKeys(const YAML::Node& m, SolverSettings& solver) {
     if (!(solver.accept_tolerance >= 0 && solver.accept_tolerance < 1))
       fail("'simulation.cg_accept_tolerance' must be in [0, 1)");
   }
+  if (m["newton_max_iterations"]) {
+    solver.newton_max_iterations = getInt(m["newton_max_iterations"], "simulation.newton_max_iterations");
+    if (solver.newton_max_iterations < 1) fail("'simulation.newton_max_iterations' must be >= 1");
+  }
+  solver.newton_tolerance = positive(m, "newton_tolerance", solver.newton_tolerance, "simulation.");
 }
 
 void parseSimulation(const YAML::Node& m, SimulationSettings& t) {
@@ -464,7 +469,8 @@ void parseSimulation(const YAML::Node& m, SimulationSettings& t) {
             {"integrator", "policy", "dt_s", "dt_min_s", "dt_max_s", "error_tolerance_m", "max_time_s",
              "max_wall_time_s", "rest_speed_m_s", "rest_mean_speed_m_s", "rest_duration_s", "max_edge_stretch",
              "cg_tolerance", "cg_max_iterations", "linear_solver", "preconditioner", "cg_warm_start",
-             "cg_smoothing_steps", "cg_smoothing_weight", "cg_accept_tolerance", "trajectory_every"});
+             "cg_smoothing_steps", "cg_smoothing_weight", "cg_accept_tolerance", "newton_max_iterations",
+             "newton_tolerance", "trajectory_every"});
   if (m["integrator"]) t.integrator = getEnum<IntegratorType>(m["integrator"], "simulation.integrator", integratorFromString);
   if (m["policy"]) t.policy = getEnum<StepPolicy>(m["policy"], "simulation.policy", stepPolicyFromString);
   readPositives(m, "simulation.",

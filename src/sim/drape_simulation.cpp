@@ -43,6 +43,9 @@ void checkSettings(const SimulationSettings& s) {
   require(s.max_time >= 0, "max_time", s.max_time, ">= 0");
   require(s.error_tolerance > 0, "error_tolerance", s.error_tolerance, "> 0");
   require(s.max_wall_time >= 0, "max_wall_time", s.max_wall_time, ">= 0 (0 = no cap)");
+  require(s.solver.newton_max_iterations >= 1, "solver.newton_max_iterations", s.solver.newton_max_iterations, ">= 1");
+  require(s.solver.newton_tolerance > 0 && std::isfinite(s.solver.newton_tolerance), "solver.newton_tolerance",
+          s.solver.newton_tolerance, "finite and > 0");
   if (!bad.empty()) throw SimError("DrapeSimulation: " + bad);
 }
 }  // namespace

@@ -11,6 +11,8 @@
 
 #include "textile_handling/sim/collision.h"
 #include "textile_handling/sim/timing.h"
+#include "block_jacobi.h"
+#include "implicit_euler_base.h"
 #include "sparse_ldlt.h"
 
 namespace textile_handling {
@@ -20,6 +22,7 @@ std::string toString(IntegratorType t) {
     case IntegratorType::kRK4: return "rk4";
     case IntegratorType::kSemiImplicitEuler: return "semi_implicit";
     case IntegratorType::kBlockDiagonalEuler: return "block_diagonal";
+    case IntegratorType::kBackwardEulerNewton: return "backward_euler_newton";
   }
   return "unknown";
 }
@@ -28,7 +31,9 @@ IntegratorType integratorFromString(const std::string& s) {
   if (s == "rk4") return IntegratorType::kRK4;
   if (s == "semi_implicit") return IntegratorType::kSemiImplicitEuler;
   if (s == "block_diagonal") return IntegratorType::kBlockDiagonalEuler;
-  throw SimError("unknown integrator '" + s + "' (expected rk4, semi_implicit or block_diagonal)");
+  if (s == "backward_euler_newton") return IntegratorType::kBackwardEulerNewton;
+  throw SimError("unknown integrator '" + s +
+                 "' (expected rk4, semi_implicit, block_diagonal or backward_euler_newton)");
 }
 
 std::string toString(LinearSolverKind k) {
@@ -98,153 +103,7 @@ Real deterministicDot(const VecX& a, const VecX& b) {
 
 namespace {
 
-// Shared by both implicit variants: assembles A = M - h D - h^2 K and rhs = h (f + h K v).
-class ImplicitEulerBase : public Integrator {
- protected:
-  explicit ImplicitEulerBase(SolverSettings s) : solver_(s) {}
-
-  bool assemble(ClothModel& model, const VecX& x, const VecX& v, Real h, StepOutcome* out) {
-    if (model_ != &model) {
-      jac_ = model.makeJacobians();
-      system_ = BlockSparseMatrix(&model.jacobianPattern());
-      model_ = &model;
-    }
-    const ForceReport rep = model.computeForces(x, v, f_, &jac_);
-    out->degenerate_terms = rep.degenerate_terms;
-    if (!f_.allFinite()) {
-      out->ok = false;
-      out->failure = "non-finite force";
-      return false;
-    }
-    auto& A = system_.values();
-    const auto& K = jac_.dfdx.values();
-    const auto& D = jac_.dfdv.values();
-    const Real h2 = h * h;
-#pragma omp parallel for schedule(static)
-    for (Index k = 0; k < static_cast<Index>(A.size()); ++k) A[k] = -h * D[k] - h2 * K[k];
-    model.addMassMatrix(x, 1.0, system_);  // M(x) is held constant over the step
-    jac_.dfdx.multiply(v, kv_);
-    rhs_ = h * (f_ + h * kv_);
-    return true;
-  }
-
-  // Inverts the diagonal block of node i of the system matrix.
-  bool invertDiagonal(Index i, Eigen::MatrixXd* inv) const {
-    const BlockPattern& p = system_.pattern();
-    const int b = p.blockSize();
-    Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> blk(
-        system_.block(p.diagonal(i)), b, b);
-    Eigen::FullPivLU<Eigen::MatrixXd> lu(blk);
-    if (!lu.isInvertible()) return false;
-    *inv = lu.inverse();
-    return true;
-  }
-
-  void finish(const PinnedNodes& pins, const VecX& x, const VecX& v, Real t, Real h, const VecX& dv,
-              const ClothModel& model, VecX& x_new, VecX& v_new, StepOutcome* out) {
-    v_new = v + dv;
-    x_new = x + h * v_new;
-    const int b = model.dofsPerNode();
-    // Pinned nodes land exactly on their prescribed positions.
-    for (size_t k = 0; k < pins.nodes.size(); ++k) {
-      const Index p = pins.nodes[k];
-      x_new.segment<3>(p * b) = pins.position(k, t + h);
-    }
-    Real worst = 0;
-    const auto mask = pinnedMask(model.numNodes(), pins);
-    for (Index i = 0; i < model.numNodes(); ++i)
-      if (!mask[i]) worst = std::max(worst, dv.segment<3>(i * b).norm());
-    out->error_estimate = 0.5 * h * worst;  // |x_backward - x_forward| / 2
-    out->error_order = 2;
-    if (!x_new.allFinite() || !v_new.allFinite()) {
-      out->ok = false;
-      out->failure = "non-finite state after step";
-    }
-  }
-
-  // Prescribed velocity change of pinned nodes so that they reach their target at t + h.
-  void pinnedVelocityChange(const ClothModel& model, const PinnedNodes& pins, const VecX& x, const VecX& v,
-                            Real t, Real h, VecX& dv) const {
-    const int b = model.dofsPerNode();
-    for (size_t k = 0; k < pins.nodes.size(); ++k) {
-      const Index p = pins.nodes[k];
-      const Vec3 target_v = (pins.position(k, t + h) - x.segment<3>(p * b)) / h;
-      dv.segment(p * b, b).setZero();
-      dv.segment<3>(p * b) = target_v - v.segment<3>(p * b);
-    }
-  }
-
-  SolverSettings solver_;
-  const ClothModel* model_ = nullptr;
-  ForceJacobians jac_;
-  BlockSparseMatrix system_;
-  VecX f_, kv_, rhs_;
-};
-
 using Clock = std::chrono::steady_clock;
-
-// Block-Jacobi: inverses of the diagonal blocks of the free nodes (pinned nodes give zero).
-class BlockJacobi {
- public:
-  bool update(const BlockSparseMatrix& A, const std::vector<char>& node_pinned) {
-    const BlockPattern& p = A.pattern();
-    const Index n = p.numNodes();
-    b_ = p.blockSize();
-    const int bb = b_ * b_;
-    inv_.assign(static_cast<size_t>(n) * bb, 0.0);
-    pinned_ = &node_pinned;
-    bool ok = true;
-#pragma omp parallel for schedule(static) reduction(&& : ok)
-    for (Index i = 0; i < n; ++i) {
-      if (node_pinned[i]) continue;
-      const Real* blk = A.block(p.diagonal(i));
-      Real* out = inv_.data() + static_cast<size_t>(i) * bb;
-      if (b_ == 3) {
-        const Mat3 a = Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(blk);
-        const Real det = a.determinant();
-        if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) {
-          ok = false;
-          continue;
-        }
-        Eigen::Map<Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>> o(out);
-        o = a.inverse();
-      } else {
-        Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> a(blk, b_, b_);
-        Eigen::FullPivLU<Eigen::MatrixXd> lu(a);
-        if (!lu.isInvertible()) {
-          ok = false;
-          continue;
-        }
-        Eigen::Map<Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> o(out, b_, b_);
-        o = lu.inverse();
-      }
-    }
-    return ok;
-  }
-  // z = weight * D^-1 r (add = false) or z += weight * D^-1 r (add = true).
-  void apply(const VecX& r, VecX& z, Real weight, bool add) const {
-    const Index n = static_cast<Index>((*pinned_).size());
-    const int bb = b_ * b_;
-    if (!add) z.setZero(r.size());
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < n; ++i) {
-      if ((*pinned_)[i]) continue;
-      const Real* m = inv_.data() + static_cast<size_t>(i) * bb;
-      if (b_ == 3) {
-        Eigen::Map<Vec3>(z.data() + 3 * i) +=
-            weight * (Eigen::Map<const Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>>(m) * Eigen::Map<const Vec3>(r.data() + 3 * i));
-      } else {
-        z.segment(i * b_, b_) += weight * (Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(m, b_, b_) *
-                                           r.segment(i * b_, b_));
-      }
-    }
-  }
-
- private:
-  int b_ = 3;
-  std::vector<Real> inv_;
-  const std::vector<char>* pinned_ = nullptr;
-};
 
 // Two-level preconditioner: block-Jacobi smoothing on the fine level plus an exact solve of the
 // Galerkin coarse system P^T A P, where P is the piecewise-constant (unsmoothed) aggregation
@@ -717,6 +576,7 @@ std::unique_ptr<Integrator> makeIntegrator(IntegratorType type, const SolverSett
     case IntegratorType::kRK4: return std::make_unique<RungeKutta4>();
     case IntegratorType::kSemiImplicitEuler: return std::make_unique<SemiImplicitEuler>(solver);
     case IntegratorType::kBlockDiagonalEuler: return std::make_unique<BlockDiagonalEuler>(solver);
+    case IntegratorType::kBackwardEulerNewton: return makeBackwardEulerNewton(solver);
   }
   throw SimError("unknown integrator");
 }

@@ -41,9 +41,10 @@ std::size_t estimateSimulationBytes(const SimulationMemoryInput& in) {
   switch (in.integrator) {
     case IntegratorType::kRK4: per_node = kBytesPerNodeRk4 * dof_scale; break;
     case IntegratorType::kBlockDiagonalEuler: per_node = kBytesPerNodeBlockDiagonal * dof_scale * dof_scale; break;
+    case IntegratorType::kBackwardEulerNewton:  // the system and a few more vectors than CG's
     case IntegratorType::kSemiImplicitEuler:
       per_node = kBytesPerNodeSemiImplicitCg * dof_scale * dof_scale;
-      if (in.solver == LinearSolverKind::kDirect)
+      if (in.integrator == IntegratorType::kSemiImplicitEuler && in.solver == LinearSolverKind::kDirect)
         per_node += kBytesPerNodeLogDirect * dof_scale * dof_scale * std::log2(std::max(2.0, nodes));
       break;
   }

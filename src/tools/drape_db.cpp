@@ -77,7 +77,7 @@ const char* kUsage =
     "  build  --db FILE --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
     "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
     "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02]\n"
-    "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4]\n"
+    "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4|backward_euler_newton]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"

@@ -1,6 +1,9 @@
 // Scenes shared by the simulation tests.
 #pragma once
 
+#include <Eigen/Core>
+
+#include "textile_handling/sim/block_sparse.h"
 #include "textile_handling/sim/drape_scene.h"
 
 namespace textile_handling {
@@ -20,6 +23,20 @@ inline DrapeSceneSpec heldSquareSpec(Real side, Real d) {
   s.hold = {HoldPoint{"corner", Vec2::Zero()}};
   s.hold_position = Vec3(0, 0, 1);
   return s;
+}
+
+/// The dense matrix of a block-sparse one (column by column, products with unit vectors).
+inline Eigen::MatrixXd denseMatrix(const BlockSparseMatrix& a) {
+  const Index n = a.pattern().numNodes() * a.pattern().blockSize();
+  Eigen::MatrixXd m(n, n);
+  VecX e = VecX::Zero(n), col;
+  for (Index k = 0; k < n; ++k) {
+    e[k] = 1;
+    a.multiply(e, col);
+    m.col(k) = col;
+    e[k] = 0;
+  }
+  return m;
 }
 
 }  // namespace sim_test_support

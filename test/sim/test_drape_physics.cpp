@@ -387,6 +387,7 @@ TEST(DrapeSaveResume, ResumedRunEqualsUninterruptedRun) {
   const Case cases[] = {{IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled},
                         {IntegratorType::kSemiImplicitEuler, StepPolicy::kThesis},
                         {IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled},
+                        {IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled},
                         {IntegratorType::kRK4, StepPolicy::kErrorControlled}};
   for (const Case& c : cases) {
     SCOPED_TRACE(toString(c.integrator) + " / " + toString(c.policy));
@@ -787,6 +788,8 @@ TEST(DrapeSceneYaml, FullSceneWithAllSections) {
   EXPECT_DOUBLE_EQ(s.settings.solver.accept_tolerance, 0.1);
   EXPECT_DOUBLE_EQ(s.settings.solver.relative_tolerance, 0.01);
   EXPECT_DOUBLE_EQ(s.settings.max_wall_time, 60.0);
+  EXPECT_EQ(s.settings.solver.newton_max_iterations, 7);
+  EXPECT_DOUBLE_EQ(s.settings.solver.newton_tolerance, 0.02);
   EXPECT_TRUE(s.self_collision);
   EXPECT_EQ(s.collision.version, SelfCollisionVersion::kEdge);
   EXPECT_EQ(s.collision.response, CollisionResponse::kRelative);
@@ -884,6 +887,9 @@ TEST(DrapeSceneYaml, MalformedScenesAreRejectedNamingTheField) {
   expectRejected(parse("simulation: {cg_max_iterations: many}"), {"simulation.cg_max_iterations"},
                  "iterations not a number");
   expectRejected(parse("simulation: {cg_max_iterations: 0}"), {"simulation.cg_max_iterations"}, "zero iterations");
+  expectRejected(parse("simulation: {newton_max_iterations: 0}"), {"simulation.newton_max_iterations"},
+                 "zero Newton iterations");
+  expectRejected(parse("simulation: {newton_tolerance: 0}"), {"simulation.newton_tolerance"}, "zero Newton tolerance");
   expectRejected(parse("simulation: {trajectory_every: -2}"), {"simulation.trajectory_every"}, "negative stride");
   expectRejected(parse("model: {name: [particle_kes]}"), {"model.name"}, "model name not a string");
   expectRejected(parse("material: {name: cotton}"), {"material"}, "material not a string");

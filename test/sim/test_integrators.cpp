@@ -130,7 +130,8 @@ struct IntegratorCase {
 std::vector<IntegratorCase> allIntegrators() {
   return {{IntegratorType::kRK4, StepPolicy::kFixed, 5e-5},
           {IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3},
-          {IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled, 1e-4}};
+          {IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled, 1e-4},
+          {IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled, 1e-3}};
 }
 
 // Runs the scene in chunks and checks after every chunk that each pinned node sits exactly
@@ -346,7 +347,8 @@ TEST(IntegratorThreads, ResultsIndependentOfThreadCount) {
   const std::vector<std::pair<IntegratorCase, Real>> cases = {
       {{IntegratorType::kRK4, StepPolicy::kFixed, 1e-4}, 4e-4},
       {{IntegratorType::kSemiImplicitEuler, StepPolicy::kErrorControlled, 1e-3}, 4e-3},
-      {{IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled, 1e-4}, 1.2e-3}};
+      {{IntegratorType::kBlockDiagonalEuler, StepPolicy::kErrorControlled, 1e-4}, 1.2e-3},
+      {{IntegratorType::kBackwardEulerNewton, StepPolicy::kErrorControlled, 1e-3}, 4e-3}};
   for (const auto& [c, until] : cases) {
     SCOPED_TRACE(toString(c.integrator));
     const VecX a = runWithThreads(1, c, until);
@@ -355,7 +357,8 @@ TEST(IntegratorThreads, ResultsIndependentOfThreadCount) {
     EXPECT_NEAR(a[a.size() - 1], b[b.size() - 1], 1e-9 * a[a.size() - 1]) << "different step sequences";
     EXPECT_LE((a - b).cwiseAbs().maxCoeff(), 1e-9 * maxAbs(a));
     // Force assembly is coloured so that every sum has a fixed order (docs/simulation.md, decision
-    // 14): without a linear solver in between, the results are bitwise equal.
+    // 14): without a linear solver in between, or with the conjugate-residual solver (fixed-order
+    // products and dot products), the results are bitwise equal.
     if (c.integrator != IntegratorType::kSemiImplicitEuler) {
       EXPECT_TRUE(a == b) << "assembly depends on the thread count";
     }
@@ -368,8 +371,8 @@ TEST(IntegratorThreads, ResultsIndependentOfThreadCount) {
 // ---- names ---------------------------------------------------------------------------------------
 
 TEST(IntegratorNames, RoundTripAndRejectUnknown) {
-  for (IntegratorType t :
-       {IntegratorType::kRK4, IntegratorType::kSemiImplicitEuler, IntegratorType::kBlockDiagonalEuler})
+  for (IntegratorType t : {IntegratorType::kRK4, IntegratorType::kSemiImplicitEuler,
+                           IntegratorType::kBlockDiagonalEuler, IntegratorType::kBackwardEulerNewton})
     EXPECT_EQ(integratorFromString(toString(t)), t);
   for (StepPolicy p : {StepPolicy::kFixed, StepPolicy::kThesis, StepPolicy::kErrorControlled})
     EXPECT_EQ(stepPolicyFromString(toString(p)), p);
@@ -377,6 +380,7 @@ TEST(IntegratorNames, RoundTripAndRejectUnknown) {
   EXPECT_THROW(integratorFromString("RK4"), std::invalid_argument);
   EXPECT_THROW(stepPolicyFromString("adaptive"), std::invalid_argument);
   EXPECT_EQ(makeIntegrator(IntegratorType::kBlockDiagonalEuler)->type(), IntegratorType::kBlockDiagonalEuler);
+  EXPECT_EQ(makeIntegrator(IntegratorType::kBackwardEulerNewton)->type(), IntegratorType::kBackwardEulerNewton);
 }
 
 TEST(DrapeSimulationSettings, EachBadSettingIsNamed) {

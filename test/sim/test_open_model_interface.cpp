@@ -40,16 +40,7 @@ Eigen::MatrixXd denseMass(const ClothModel& model, const VecX& x) {
   BlockSparseMatrix m(&model.jacobianPattern());
   m.setZero();
   model.addMassMatrix(x, 1.0, m);
-  const Index n = model.numDofs();
-  Eigen::MatrixXd dense(n, n);
-  VecX e = VecX::Zero(n), col;
-  for (Index k = 0; k < n; ++k) {
-    e[k] = 1;
-    m.multiply(e, col);
-    dense.col(k) = col;
-    e[k] = 0;
-  }
-  return dense;
+  return sim_test_support::denseMatrix(m);
 }
 
 TEST(OpenModelInterface, FiveDofSceneHasModelSizedStateAndPositionView) {
@@ -143,6 +134,7 @@ const IntegratorCase kIntegrators[] = {
     {"semi_implicit cg", IntegratorType::kSemiImplicitEuler, LinearSolverKind::kCG, 2e-3},
     {"semi_implicit direct", IntegratorType::kSemiImplicitEuler, LinearSolverKind::kDirect, 2e-3},
     {"block_diagonal", IntegratorType::kBlockDiagonalEuler, LinearSolverKind::kCG, 2e-4},
+    {"backward_euler_newton", IntegratorType::kBackwardEulerNewton, LinearSolverKind::kCG, 2e-3},
 };
 
 DrapeSceneSpec fixedStep(DrapeSceneSpec s, const IntegratorCase& c) {

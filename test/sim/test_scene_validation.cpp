@@ -283,6 +283,10 @@ TEST(MemoryBudget, EstimateGrowsWithNodesAndCollisionAndDirectSolver) {
   in.self_collision = false;
   in.solver = LinearSolverKind::kDirect;
   EXPECT_GT(estimateSimulationBytes(in), cg);
+  // Newton's PCR needs what CG needs; the direct-solver setting does not apply to it.
+  in.integrator = IntegratorType::kBackwardEulerNewton;
+  EXPECT_EQ(estimateSimulationBytes(in), cg);
+  in.integrator = IntegratorType::kSemiImplicitEuler;
   in.nodes = std::numeric_limits<Index>::max();  // saturates, never wraps
   EXPECT_GT(estimateSimulationBytes(in), std::size_t{1} << 40);
   EXPECT_GT(defaultMemoryBudgetBytes(), 0u);

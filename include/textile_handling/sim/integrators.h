@@ -9,6 +9,11 @@
 //  - kBlockDiagonalEuler: the thesis's reduction (section 4.4): the same system with only its
 //    diagonal blocks, solved node by node in closed form. The right-hand side keeps the full
 //    df/dx v product (thesis open decision 11).
+//  - kBackwardEulerNewton: backward Euler solved by Newton's method (yarn-level cloth, section 5.1):
+//    the residual r(v) = M (v - v_n) - h f(x_n + h v, v) is driven to zero by at most
+//    SolverSettings::newton_max_iterations solves of (M - h df/dv - h^2 df/dx) dv = -r with a
+//    preconditioned conjugate-residual solver (conjugate_residual.h); a step that does not converge
+//    fails, and the adaptive step policies retry it with h / 2.
 // Pinned nodes follow prescribed positions exactly: their velocity change is fixed and moved to the
 // right-hand side, and the solve runs on the free DOFs only (constraint filtering).
 #pragma once
@@ -21,9 +26,10 @@
 
 namespace textile_handling {
 
-enum class IntegratorType { kRK4, kSemiImplicitEuler, kBlockDiagonalEuler };
+enum class IntegratorType { kRK4, kSemiImplicitEuler, kBlockDiagonalEuler, kBackwardEulerNewton };
 std::string toString(IntegratorType t);
-/// Parses "rk4", "semi_implicit", "block_diagonal"; throws std::invalid_argument otherwise.
+/// Parses "rk4", "semi_implicit", "block_diagonal", "backward_euler_newton"; throws std::invalid_argument
+/// otherwise.
 IntegratorType integratorFromString(const std::string& s);
 
 /// Nodes held in place; they follow anchor + offset(t), offset piecewise linear in time (lifting).
@@ -38,7 +44,8 @@ struct PinnedNodes {
   Vec3 position(size_t k, Real t) const { return anchors[k] + offset(t); }
 };
 
-/// How the semi-implicit integrator solves its sparse system.
+/// How the semi-implicit integrator solves its sparse system (backward_euler_newton always uses
+/// conjugate residuals with block-Jacobi; it takes the tolerance and iteration caps of this struct).
 enum class LinearSolverKind {
   kCG,      ///< preconditioned conjugate gradients ("cg")
   kDirect,  ///< sparse LDL^T factorisation (Eigen, AMD ordering) of the full system every step ("direct");
@@ -70,8 +77,8 @@ struct SolverSettings {
   /// (lambda_max ~ 2.7 for the particle model); if CG finds it is not, the step continues additively.
   int smoothing_steps = 1;
   Real smoothing_weight = 0.6;
-  int max_iterations = 400;        ///< CG iteration cap
-  Real relative_tolerance = 1e-6;  ///< CG stops at |r| <= tol |b| (free DOFs, b = right-hand side)
+  int max_iterations = 400;        ///< CG (PCR for backward_euler_newton) iteration cap per solve
+  Real relative_tolerance = 1e-6;  ///< CG / PCR stop at |r| <= tol |b| (free DOFs, b = right-hand side)
   /// CG starts from the previous step's solution, rescaled to the new step size and then by the
   /// factor that minimises the A-norm error along it (never worse than a zero start). Saves about a
   /// third of the iterations, but makes a step depend on the previous one: a run resumed from a
@@ -80,18 +87,25 @@ struct SolverSettings {
   bool warm_start = false;
   /// At the iteration cap, accept the iterate anyway if |r| <= accept_tolerance |b| (0: never).
   Real accept_tolerance = 0;
+  /// backward_euler_newton: linear solves per step before the step fails (>= 1).
+  int newton_max_iterations = 5;
+  /// backward_euler_newton: converged when the residual M (v - v_n) - h f(x_n + h v, v) on the free
+  /// DOFs has |r|_inf <= newton_tolerance * max(|M v_n|_inf, h |f(x_n, v_n)|_inf, h g max m) (free
+  /// DOFs; m = lumped mass per DOF, g = 9.81 m/s^2).
+  Real newton_tolerance = 1e-2;
 };
 
 /// What one step did (or why it failed).
 struct StepOutcome {
   bool ok = true;
   std::string failure;        ///< non-empty when !ok (solver breakdown, degenerate geometry, NaN)
-  int solver_iterations = 0;
+  int solver_iterations = 0;   ///< linear-solver iterations (all Newton iterations of the step)
+  int newton_iterations = 0;   ///< Newton iterations, i.e. linear solves (backward_euler_newton)
   Real error_estimate = 0;    ///< local position error estimate [m] (for error-controlled steps)
   int error_order = 2;        ///< the estimate scales like h^error_order
   Index degenerate_terms = 0;
-  Real assembly_ms = 0;       ///< wall time of forces, Jacobians and system assembly (semi_implicit)
-  Real solve_ms = 0;          ///< wall time of the linear solve, preconditioner set-up included (semi_implicit)
+  Real assembly_ms = 0;       ///< wall time of forces, Jacobians and system assembly (semi_implicit, Newton)
+  Real solve_ms = 0;          ///< wall time of the linear solves, preconditioner set-up included (semi_implicit, Newton)
 };
 
 class Integrator {
