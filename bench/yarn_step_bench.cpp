@@ -3,10 +3,13 @@
 //
 //   yarn_step_bench [--out DIR] [--sides N1,N2,...] [--steps K] [--dt S] [--integrator NAME]
 //                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
+//                   [--linear-tolerance T] [--accept-tolerance T]
 //
 // Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
 // from its two upper corners and released flat, K fixed steps of --dt (default 1 ms, the source's
-// step) with --integrator (default semi_implicit). For every size, one and two threads run
+// step) with --integrator (default semi_implicit) and the linear solver's relative tolerance
+// --linear-tolerance (default: the solver settings' 1e-6; --accept-tolerance accepts an iterate at the
+// iteration cap whose relative residual is below it). For every size, one and two threads run
 // interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time per step and per
 // crossing-step, the split into assembly (forces and Jacobians) and solve, and the solver iterations
 // per step. Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each
@@ -46,6 +49,9 @@ std::vector<double> parseList(const std::string& text) {
 }
 
 // N x N crossings at 1 mm, held at its two upper corners, flat at release.
+Real g_linear_tolerance = 0;  // --linear-tolerance (0: the solver's default)
+Real g_accept_tolerance = 0;  // --accept-tolerance (0: the solver's default)
+
 DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
   const Real L = 1e-3, side = (side_crossings - 1) * L;
   TextileOutline t;
@@ -62,6 +68,8 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   s.settings.max_time = until;
   s.settings.rest_duration = 1e9;
   s.settings.memory_budget_bytes = 8e9;
+  if (g_linear_tolerance > 0) s.settings.solver.relative_tolerance = g_linear_tolerance;
+  if (g_accept_tolerance > 0) s.settings.solver.accept_tolerance = g_accept_tolerance;
   return s;
 }
 
@@ -70,6 +78,7 @@ struct CostRow {
   long crossings = 0, steps = 0;
   double wall_ms_per_step = 0, us_per_crossing_step = 0, assembly_ms = 0, solve_ms = 0, iterations = 0;
   bool diverged = false;
+  std::string reason;
 };
 
 CostRow measure(int side, int threads, int repeat, int steps, Real dt, IntegratorType integrator) {
@@ -90,6 +99,7 @@ CostRow measure(int side, int threads, int repeat, int steps, Real dt, Integrato
   row.solve_ms = r.solve_ms / row.steps;
   row.iterations = static_cast<double>(r.solver_iterations) / row.steps;
   row.diverged = r.diverged;
+  row.reason = r.divergence_reason;
   return row;
 }
 
@@ -121,6 +131,8 @@ int main(int argc, char** argv) {
     else if (a == "--stable-side") stable_side = std::atoi(v.c_str());
     else if (a == "--stable-time") stable_time = std::atof(v.c_str());
     else if (a == "--stable-dts") stable_dts = parseList(v);
+    else if (a == "--linear-tolerance") g_linear_tolerance = std::atof(v.c_str());
+    else if (a == "--accept-tolerance") g_accept_tolerance = std::atof(v.c_str());
     else {
       std::cerr << "yarn_step_bench: unknown option " << a << "\n";
       return 2;
@@ -158,7 +170,7 @@ int main(int argc, char** argv) {
           std::printf("side %d (%ld crossings), %d thread(s), repeat %d: %.3g us per crossing-step (assembly %.3g ms, solve "
                       "%.3g ms, %.1f solver iterations per step)%s\n",
                       side, row.crossings, threads, r, row.us_per_crossing_step, row.assembly_ms, row.solve_ms, row.iterations,
-                      row.diverged ? " DIVERGED" : "");
+                      row.diverged ? (" DIVERGED: " + row.reason).c_str() : "");
           std::fflush(stdout);
           chart.push_back({static_cast<double>(row.crossings), row.us_per_crossing_step, "",
                            std::to_string(threads) + " thread" + (threads > 1 ? "s" : "")});
