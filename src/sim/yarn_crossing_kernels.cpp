@@ -1,6 +1,8 @@
 // Crossing-level kernels of the yarn-level model (yarn_crossing_kernels.h).
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 
+#include "yarn_angle_polynomials.h"
+
 #include <Eigen/Geometry>
 #include <cmath>
 
@@ -20,33 +22,17 @@ struct ReducedAngle {
 };
 
 ReducedAngle reducedAngle(const CrossingVector& p, bool hessian) {
-  const Vec3 a = p.segment<3>(3) - p.segment<3>(0), b = p.segment<3>(6) - p.segment<3>(0);
-  const Real aa = a.squaredNorm(), bb = b.squaredNorm(), c = a.dot(b);
-  const Real S = a.cross(b).squaredNorm();  // not aa bb - c^2: no cancellation near 0 and pi
-  const Real s = std::sqrt(S);
+  const detail::AnglePolynomials P =
+      detail::anglePolynomials(p.segment<3>(3) - p.segment<3>(0), p.segment<3>(6) - p.segment<3>(0));
+  const Real S = P.S, c = P.c, s = std::sqrt(S);
   ReducedAngle r;
   r.phi = std::atan2(s, c);
-  r.g << (c / aa * a - b) / s, (c / bb * b - a) / s;
+  r.g << (c / P.aa * P.a - P.b) / s, (c / P.bb * P.b - P.a) / s;
   if (!hessian) return r;
   // phi = G(S, c) = atan2(sqrt(S), c): chain rule through the polynomials S(a, b) and c(a, b).
   const Real r2 = S + c * c;
-  const Real G_S = c / (2 * s * r2), G_c = -s / r2;
-  const Real G_SS = -c * (r2 + 2 * S) / (4 * S * s * r2 * r2);
-  const Real G_Sc = (S - c * c) / (2 * s * r2 * r2);
-  const Real G_cc = 2 * s * c / (r2 * r2);
-  Vec6 dS, dc;
-  dS << 2 * bb * a - 2 * c * b, 2 * aa * b - 2 * c * a;
-  dc << b, a;
-  const Mat3 I = Mat3::Identity();
-  Mat6 HS, Hc = Mat6::Zero();
-  HS.topLeftCorner<3, 3>() = 2 * bb * I - 2 * b * b.transpose();
-  HS.topRightCorner<3, 3>() = 4 * a * b.transpose() - 2 * b * a.transpose() - 2 * c * I;
-  HS.bottomLeftCorner<3, 3>() = HS.topRightCorner<3, 3>().transpose();
-  HS.bottomRightCorner<3, 3>() = 2 * aa * I - 2 * a * a.transpose();
-  Hc.topRightCorner<3, 3>() = I;
-  Hc.bottomLeftCorner<3, 3>() = I;
-  r.H = G_S * HS + G_c * Hc + G_SS * dS * dS.transpose() + G_Sc * (dS * dc.transpose() + dc * dS.transpose()) +
-        G_cc * dc * dc.transpose();
+  r.H = detail::chainHessian(P, c / (2 * s * r2), -s / r2, -c * (r2 + 2 * S) / (4 * S * s * r2 * r2),
+                             (S - c * c) / (2 * s * r2 * r2), 2 * s * c / (r2 * r2));
   return r;
 }
 

@@ -11,6 +11,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "yarn_angle_polynomials.h"
+
 namespace textile_handling {
 namespace yarn {
 
@@ -95,32 +97,17 @@ AngleSquared angleSquared(Real S, Real c) {
 // Bending energy in the stencil's reduced variables r = (a, b, D2) = (x0 - x2, x1 - x0, u1 - u2): value,
 // gradient and (if `H` is not null) Hessian.
 Real bendReduced(const BendVector& q, Real k_b, Vec7* g, Mat7* H) {
-  const Vec3 a = q.segment<3>(4) - q.segment<3>(0), b = q.segment<3>(8) - q.segment<3>(4);
+  const detail::AnglePolynomials P = detail::anglePolynomials(q.segment<3>(4) - q.segment<3>(0), q.segment<3>(8) - q.segment<3>(4));
   const Real D2 = q[11] - q[3];
-  const Real aa = a.squaredNorm(), bb = b.squaredNorm(), c = a.dot(b);
-  const Real S = a.cross(b).squaredNorm();  // not aa bb - c^2: no cancellation for a straight yarn
-  const AngleSquared f = angleSquared(S, c);
-  Vec6 dS, dc;
-  dS << 2 * bb * a - 2 * c * b, 2 * aa * b - 2 * c * a;
-  dc << b, a;
-  const Vec6 df = f.F_S * dS + f.F_c * dc;
+  const AngleSquared f = angleSquared(P.S, P.c);  // S computed as |a x b|^2: no cancellation for a straight yarn
+  const Vec6 df = f.F_S * P.dS + f.F_c * P.dc;
   const Real V = k_b * f.F / D2;
   if (g) {
     g->head<6>() = k_b / D2 * df;
     (*g)[6] = -k_b * f.F / (D2 * D2);
   }
   if (H) {
-    const Mat3 I = Mat3::Identity();
-    Mat6 HS, Hc = Mat6::Zero();
-    HS.topLeftCorner<3, 3>() = 2 * bb * I - 2 * b * b.transpose();
-    HS.topRightCorner<3, 3>() = 4 * a * b.transpose() - 2 * b * a.transpose() - 2 * c * I;
-    HS.bottomLeftCorner<3, 3>() = HS.topRightCorner<3, 3>().transpose();
-    HS.bottomRightCorner<3, 3>() = 2 * aa * I - 2 * a * a.transpose();
-    Hc.topRightCorner<3, 3>() = I;
-    Hc.bottomLeftCorner<3, 3>() = I;
-    const Mat6 Hf = f.F_S * HS + f.F_c * Hc + f.F_SS * dS * dS.transpose() +
-                    f.F_Sc * (dS * dc.transpose() + dc * dS.transpose()) + f.F_cc * dc * dc.transpose();
-    H->topLeftCorner<6, 6>() = k_b / D2 * Hf;
+    H->topLeftCorner<6, 6>() = k_b / D2 * detail::chainHessian(P, f.F_S, f.F_c, f.F_SS, f.F_Sc, f.F_cc);
     H->topRightCorner<6, 1>() = -k_b / (D2 * D2) * df;
     H->bottomLeftCorner<1, 6>() = H->topRightCorner<6, 1>().transpose();
     (*H)(6, 6) = 2 * k_b * f.F / (D2 * D2 * D2);

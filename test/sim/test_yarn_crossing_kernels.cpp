@@ -2,11 +2,7 @@
 // jamming and shear friction against finite differences, their clamped Hessians' definiteness and
 // invariances; the stick/slip spring, its anchor update and sliding friction; the parallel-yarn
 // contact; the normal compression of flat, floating, curved and stretched sheets.
-// The eigenvalue checks trip GCC 12's -Wmaybe-uninitialized false positive in Eigen (as in
-// yarn_kernels.cpp); silence it for this file only (it must precede the first Eigen include).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
+#include "yarn_test_support.h"  // first: see there
 
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 
@@ -28,33 +24,10 @@ namespace textile_handling {
 namespace yarn {
 namespace {
 
-Eigen::VectorXd eigenvalues(const Eigen::MatrixXd& m) { return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues(); }
+using yarn_test_support::eigenvalues;
 
-template <int N>
-Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, 1> g;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    g[k] = (f(a) - f(b)) / (2 * h);
-  }
-  return g;
-}
-
-template <int N>
-Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, N> J;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    J.col(k) = (f(a) - f(b)) / (2 * h);
-  }
-  return J;
-}
+using yarn_test_support::numericGradientN;
+using yarn_test_support::numericJacobianN;
 
 // A crossing stencil with segments of ~1 mm at the angle `phi` [rad] in a random plane, at a random place.
 CrossingVector stencilAt(std::mt19937& rng, Real phi) {

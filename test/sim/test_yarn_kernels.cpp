@@ -1,10 +1,7 @@
 // Tests for sim/yarn_kernels.h: stretch, bending and gravity against finite differences, the forces of
 // the notes, the clamped Hessians' definiteness, gravity sliding material down a hanging yarn, and the
 // segment mass matrix (symmetry, rank 6 of 8, null motion, kinetic energy, a positive definite crossing).
-// The eigenvalue checks trip GCC 12's -Wmaybe-uninitialized false positive in Eigen (as in yarn_kernels.cpp).
-#if defined(__GNUC__) && !defined(__clang__)
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
+#include "yarn_test_support.h"  // first: see there
 
 #include "textile_handling/sim/yarn_kernels.h"
 
@@ -18,8 +15,7 @@ namespace textile_handling {
 namespace yarn {
 namespace {
 
-// Eigenvalues of a symmetric matrix, ascending.
-Eigen::VectorXd eigenvalues(const Eigen::MatrixXd& m) { return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues(); }
+using yarn_test_support::eigenvalues;
 
 // Random segments of rest length ~1 mm, stretched or compressed by up to 30 %, at random places.
 SegmentVector randomSegment(std::mt19937& rng, Real stretch_lo = 0.7, Real stretch_hi = 1.3) {
@@ -30,31 +26,8 @@ SegmentVector randomSegment(std::mt19937& rng, Real stretch_lo = 0.7, Real stret
   return packSegment(x0, u0, x0 + st(rng) * D * dir, u0 + D);
 }
 
-template <int N>
-Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, 1> g;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    g[k] = (f(a) - f(b)) / (2 * h);
-  }
-  return g;
-}
-
-template <int N>
-Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
-                                           const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, N> J;
-  for (int k = 0; k < N; ++k) {
-    Eigen::Matrix<Real, N, 1> a = q, b = q;
-    a[k] += h;
-    b[k] -= h;
-    J.col(k) = (f(a) - f(b)) / (2 * h);
-  }
-  return J;
-}
+using yarn_test_support::numericGradientN;
+using yarn_test_support::numericJacobianN;
 
 constexpr Real kKs = 1.963;  // Y pi R^2 of the source's shirt [N]
 

@@ -2,8 +2,7 @@
 // grid on a particle grid and the yarn bundles, forces against the energy gradient, df/dx and df/dv
 // against finite differences (mixed position-sliding blocks included), the mass matrix, the option keys,
 // and a small square held at two corners settling to rest.
-// GCC 12 reports a false -Wmaybe-uninitialized inside Eigen's self-adjoint eigen solver.
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include "yarn_test_support.h"  // first: see there
 
 #include <gtest/gtest.h>
 
