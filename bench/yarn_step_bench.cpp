@@ -3,13 +3,13 @@
 //
 //   yarn_step_bench [--out DIR] [--sides N1,N2,...] [--steps K] [--dt S] [--integrator NAME]
 //                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
-//                   [--linear-tolerance T] [--accept-tolerance T]
+//                   [--linear-tolerance T] [--accept-tolerance T] [--newton-tolerance T]
 //
 // Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
 // from its two upper corners and released flat, K fixed steps of --dt (default 1 ms, the source's
 // step) with --integrator (default semi_implicit) and the linear solver's relative tolerance
 // --linear-tolerance (default: the solver settings' 1e-6; --accept-tolerance accepts an iterate at the
-// iteration cap whose relative residual is below it). For every size, one and two threads run
+// iteration cap whose relative residual is below it; --newton-tolerance sets backward_euler_newton's). For every size, one and two threads run
 // interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time per step and per
 // crossing-step, the split into assembly (forces and Jacobians) and solve, and the solver iterations
 // per step. Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each
@@ -51,6 +51,7 @@ std::vector<double> parseList(const std::string& text) {
 // N x N crossings at 1 mm, held at its two upper corners, flat at release.
 Real g_linear_tolerance = 0;  // --linear-tolerance (0: the solver's default)
 Real g_accept_tolerance = 0;  // --accept-tolerance (0: the solver's default)
+Real g_newton_tolerance = 0;  // --newton-tolerance (0: the solver's default)
 
 DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
   const Real L = 1e-3, side = (side_crossings - 1) * L;
@@ -70,6 +71,7 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   s.settings.memory_budget_bytes = 8e9;
   if (g_linear_tolerance > 0) s.settings.solver.relative_tolerance = g_linear_tolerance;
   if (g_accept_tolerance > 0) s.settings.solver.accept_tolerance = g_accept_tolerance;
+  if (g_newton_tolerance > 0) s.settings.solver.newton_tolerance = g_newton_tolerance;
   return s;
 }
 
@@ -133,6 +135,7 @@ int main(int argc, char** argv) {
     else if (a == "--stable-dts") stable_dts = parseList(v);
     else if (a == "--linear-tolerance") g_linear_tolerance = std::atof(v.c_str());
     else if (a == "--accept-tolerance") g_accept_tolerance = std::atof(v.c_str());
+    else if (a == "--newton-tolerance") g_newton_tolerance = std::atof(v.c_str());
     else {
       std::cerr << "yarn_step_bench: unknown option " << a << "\n";
       return 2;
