@@ -113,7 +113,7 @@ struct ClothModelDescriptor {
   bool hasOptionKey(const std::string& key) const;
 };
 
-/// The models known to this process. Built-in models (particle_kes, choi_ko) are registered on first
+/// The models known to this process. Built-in models (particle_kes, choi_ko, yarn_woven) are registered on first
 /// use; tests and plug-ins add their own with add(). Thread-safe.
 class ClothModelRegistry {
  public:
