@@ -64,6 +64,9 @@ void YarnWovenModel::buildCrossingTerms(const std::vector<std::array<Index, 4>>&
         contacts_.push_back(p);
       }
   slide_anchor_ = VecX::Zero(static_cast<Eigen::Index>(sheet_.dofCount()));
+  for (std::size_t node = 0; node < g.crossings.size(); ++node)
+    for (std::size_t off : {3, 4})
+      if (!held_[kB * node + off]) sliding_dofs_.push_back({static_cast<Eigen::Index>(kB * node + off), node});
 }
 
 void YarnWovenModel::updateCompression(const VecX& q) {
@@ -80,13 +83,21 @@ yarn::CrossingVector crossingStencil(const VecX& q, const std::array<Index, 3>& 
 
 }  // namespace
 
+Real YarnWovenModel::pairCompression(const ShearPair& p) const {
+  return compression_.empty() ? 0 : compression_[static_cast<std::size_t>(p.node[0])];
+}
+
+yarn::ShearParameters YarnWovenModel::shearParameters(const ShearPair& p, Real F_n) const {
+  return {yarn::shearStiffness(k_x_, c_n_, F_n), spacing_, fabric_.jammingAngle(), options_.crossing.jamming_gain,
+          p.interlaced};
+}
+
 Real YarnWovenModel::crossingEnergy(const VecX& q) const {
   Real e = 0;
   for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
     const ShearPair& p = shear_pairs_[k];
-    const Real F_n = compression_.empty() ? 0 : compression_[static_cast<std::size_t>(p.node[0])];
-    yarn::ShearParameters s{yarn::shearStiffness(k_x_, c_n_, F_n), spacing_, fabric_.jammingAngle(),
-                            options_.crossing.jamming_gain, p.interlaced};
+    const Real F_n = pairCompression(p);
+    const yarn::ShearParameters s = shearParameters(p, F_n);
     const yarn::CrossingVector x = crossingStencil(q, p.node);
     e += yarn::shearEnergy(x, s);
     if (options_.crossing.friction) {  // the stick spring's elastic energy, capped at the Coulomb limit
@@ -98,16 +109,11 @@ Real YarnWovenModel::crossingEnergy(const VecX& q) const {
     e += yarn::parallelContactEnergy(q[static_cast<Eigen::Index>(p.dof[0])], q[static_cast<Eigen::Index>(p.dof[1])], k_c_,
                                      spacing_, p.distance);
   if (options_.crossing.friction && !compression_.empty())
-    for (std::size_t node = 0; node < sheet_.grid.crossings.size(); ++node)
-      for (std::size_t off : {3, 4}) {
-        const std::size_t dof = kB * node + off;
-        if (held_[dof]) continue;
-        const Real limit = fabric_.sliding_friction * compression_[node];
-        const Real d = std::min(std::abs(q[static_cast<Eigen::Index>(dof)] - arc_offset_[static_cast<Eigen::Index>(dof)] -
-                                         slide_anchor_[static_cast<Eigen::Index>(dof)]),
-                                limit / k_f_);
-        e += 0.5 * k_f_ * d * d;
-      }
+    for (const SlidingDof& s : sliding_dofs_) {
+      const Real limit = fabric_.sliding_friction * compression_[s.crossing];
+      const Real d = std::min(std::abs(q[s.dof] - arc_offset_[s.dof] - slide_anchor_[s.dof]), limit / k_f_);
+      e += 0.5 * k_f_ * d * d;
+    }
   return e;
 }
 
@@ -125,9 +131,8 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
   };
   for (std::size_t k = 0; k < shear_pairs_.size() && (conservative || friction); ++k) {
     const ShearPair& p = shear_pairs_[k];
-    const Real F_n = compression_.empty() ? 0 : compression_[static_cast<std::size_t>(p.node[0])];
-    const yarn::ShearParameters s{yarn::shearStiffness(k_x_, c_n_, F_n), spacing_, fabric_.jammingAngle(),
-                                  options_.crossing.jamming_gain, p.interlaced};
+    const Real F_n = pairCompression(p);
+    const yarn::ShearParameters s = shearParameters(p, F_n);
     const yarn::CrossingVector x = crossingStencil(q, p.node);
     if (conservative && f) {
       const yarn::CrossingVector g = yarn::shearGradient(x, s);
@@ -145,8 +150,8 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
       for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) += fr.force.segment<3>(3 * a);
     if (dfdx) addPositions(p, fr.jacobian, scale);
   }
-  for (const ContactPair& p : contacts_) {
-    if (!conservative) break;
+  for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
+    const ContactPair& p = contacts_[k];
     const Real u0 = q[static_cast<Eigen::Index>(p.dof[0])], u1 = q[static_cast<Eigen::Index>(p.dof[1])];
     if (u1 - u0 >= p.distance) continue;
     const yarn::ContactVector g = yarn::parallelContactGradient(u0, u1, k_c_, spacing_, p.distance);
@@ -163,35 +168,27 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
     }
   }
   if (!friction || compression_.empty()) return;
-  for (std::size_t node = 0; node < sheet_.grid.crossings.size(); ++node)
-    for (int off : {3, 4}) {
-      const std::size_t dof = kB * node + static_cast<std::size_t>(off);
-      if (held_[dof]) continue;
-      const Eigen::Index d = static_cast<Eigen::Index>(dof);
-      const yarn::StickSlip s = yarn::slidingFriction(q[d] - arc_offset_[d], slide_anchor_[d], k_f_, fabric_.sliding_friction,
-                                                      compression_[node]);
-      if (f) (*f)[d] += s.force + yarn::slidingDamping(v[d], d_f_);
-      const Index diag = pattern_.diagonal(static_cast<Index>(node));
-      if (dfdx) dfdx->block(diag)[off * kB + off] += scale * s.stiffness;
-      if (dfdv) dfdv->block(diag)[off * kB + off] -= scale * d_f_;
-    }
+  for (const SlidingDof& sd : sliding_dofs_) {
+    const Eigen::Index d = sd.dof;
+    const yarn::StickSlip s = yarn::slidingFriction(q[d] - arc_offset_[d], slide_anchor_[d], k_f_, fabric_.sliding_friction,
+                                                    compression_[sd.crossing]);
+    if (f) (*f)[d] += s.force + yarn::slidingDamping(v[d], d_f_);
+    if (dfdx) diagonalEntry(*dfdx, static_cast<std::size_t>(d)) += scale * s.stiffness;
+    if (dfdv) diagonalEntry(*dfdv, static_cast<std::size_t>(d)) -= scale * d_f_;
+  }
 }
 
 void YarnWovenModel::acceptStep(const VecX& x, const VecX& /*v*/) {
   const VecX q = kernelCoordinates(x);
   if (options_.crossing.friction && !compression_.empty()) {
-    for (std::size_t node = 0; node < sheet_.grid.crossings.size(); ++node)
-      for (std::size_t off : {3, 4}) {
-        const Eigen::Index d = static_cast<Eigen::Index>(kB * node + off);
-        if (held_[static_cast<std::size_t>(d)]) continue;
-        slide_anchor_[d] = yarn::slidingFrictionAnchor(x[d], slide_anchor_[d], k_f_, fabric_.sliding_friction, compression_[node]);
-      }
+    for (const SlidingDof& s : sliding_dofs_)
+      slide_anchor_[s.dof] =
+          yarn::slidingFrictionAnchor(x[s.dof], slide_anchor_[s.dof], k_f_, fabric_.sliding_friction, compression_[s.crossing]);
     for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
       const ShearPair& p = shear_pairs_[k];
       const Real phi = yarn::crossingAngle(crossingStencil(q, p.node));
       if (std::isfinite(phi))
-        angle_anchor_[k] = yarn::shearFrictionAnchor(phi, angle_anchor_[k], k_fphi_, mu_phi_,
-                                                     compression_[static_cast<std::size_t>(p.node[0])]);
+        angle_anchor_[k] = yarn::shearFrictionAnchor(phi, angle_anchor_[k], k_fphi_, mu_phi_, pairCompression(p));
     }
   }
   updateCompression(q);

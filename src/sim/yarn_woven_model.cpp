@@ -79,11 +79,15 @@ YarnGrid yarnGridOnParticles(const ParticleTopology& topology, const WeavePatter
   return g;
 }
 
+Real yarnBundleSize(const WovenFabric& fabric, Real spacing) {
+  return spacing * 0.5 * (fabric.warp_density_per_m + fabric.weft_density_per_m);
+}
+
 WovenFabric yarnBundleFabric(const WovenFabric& fabric, Real spacing) {
   validateWovenFabric(fabric);
   if (!(spacing > 0) || !std::isfinite(spacing))
     throw SimError("yarn bundle: spacing " + std::to_string(spacing) + " m must be finite and > 0");
-  const Real n = spacing * 0.5 * (fabric.warp_density_per_m + fabric.weft_density_per_m);
+  const Real n = yarnBundleSize(fabric, spacing);
   WovenFabric b = fabric;
   b.warp_density_per_m = b.weft_density_per_m = 1 / spacing;
   b.yarn_radius_m = n * fabric.yarn_radius_m;
@@ -179,16 +183,12 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
   }
 }
 
-void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, bool with_gravity, Real scale,
-                                     BlockSparseMatrix& a) const {
+void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
-  const yarn::SegmentMatrix h_gravity = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
-  const bool gravity = with_gravity && options_.gravity;
   for (const Stencil& s : segments_) {
     const auto dofs = dofsOf<2>(s);
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
-    yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
-    if (gravity) h += h_gravity;
+    const yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
     if (h.allFinite()) scatterBlocks<2>(h, s, scale, a);
   }
   for (const Stencil& s : bends_) {
@@ -197,6 +197,11 @@ void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, bool with_grav
     const yarn::BendMatrix h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
     if (h.allFinite()) scatterBlocks<3>(h, s, scale, a);
   }
+}
+
+Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const {
+  const int c = static_cast<int>(dof % kB);
+  return a.block(pattern_.diagonal(static_cast<Index>(dof / kB)))[c * kB + c];
 }
 
 void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
@@ -245,7 +250,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   const bool need_k = beta > 0 || (jac && clamped);
   if (need_k) {
     stiffness_.setZero();
-    assembleHessian(q, true, false, 1, stiffness_);
+    assembleHessian(q, true, 1, stiffness_);
     addCrossingForces(q, v, nullptr, &stiffness_, nullptr, true, kConservativeTerms, -1);
   }
   scratch_.setZero();
@@ -258,8 +263,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     scratch_.multiply(v, damping);
     f -= damping;
   }
-  for (std::size_t d = 0; d < held_.size(); ++d)
-    if (held_[d]) f[static_cast<Eigen::Index>(d)] = 0;
+  for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
     if (clamped) {
       std::transform(stiffness_.values().begin(), stiffness_.values().end(), jac->dfdx.values().begin(),
@@ -267,17 +271,14 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
       addGravityHessian(-1, jac->dfdx);
     } else {
       jac->dfdx.setZero();
-      assembleHessian(q, false, true, -1, jac->dfdx);
+      assembleHessian(q, false, -1, jac->dfdx);
+      addGravityHessian(-1, jac->dfdx);
       addCrossingForces(q, v, nullptr, &jac->dfdx, nullptr, false, kConservativeTerms, 1);
     }
     std::transform(scratch_.values().begin(), scratch_.values().end(), jac->dfdv.values().begin(),
                    [](Real a) { return -a; });
     // The held DOFs' mass entries are not damping: a held DOF has no force.
-    for (std::size_t d = 0; d < held_.size(); ++d)
-      if (held_[d]) {
-        const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
-        jac->dfdv.block(pattern_.diagonal(node))[c * kB + c] = 0;
-      }
+    for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
     addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
   }
   return report;
@@ -314,11 +315,7 @@ void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix&
     const auto dofs = dofsOf<2>(s);
     scatterBlocks<2>(yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m), s, scale, a);
   }
-  for (std::size_t d = 0; d < held_.size(); ++d)
-    if (held_[d]) {
-      const Index node = static_cast<Index>(d / kB), c = static_cast<Index>(d % kB);
-      a.block(pattern_.diagonal(node))[c * kB + c] += scale * lumped_[static_cast<Eigen::Index>(d)];
-    }
+  for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];
 }
 
 void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const {
@@ -334,8 +331,8 @@ void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const 
       if (held_[s.dof[static_cast<std::size_t>(k)]]) out[k] = 0;
     yarn_stencil::scatterAdd<2>(out, dofs, &mv);
   }
-  for (std::size_t d = 0; d < held_.size(); ++d)
-    if (held_[d]) mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
+  for (std::size_t d : sheet_.held_dofs)
+    mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
 }
 
 }  // namespace textile_handling

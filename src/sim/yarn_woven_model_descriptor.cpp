@@ -105,7 +105,7 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
   d.create = [](const ParticleTopology& topology, const Material& /*material*/, const std::any& options) {
     const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
     YarnWovenOptions model = o.model;
-    model.bundle_size = topology.spacing * 0.5 * (o.model.fabric.warp_density_per_m + o.model.fabric.weft_density_per_m);
+    model.bundle_size = yarnBundleSize(o.model.fabric, topology.spacing);
     YarnSheet sheet = buildYarnSheet(yarnGridOnParticles(topology, o.model.fabric.weave));
     return std::unique_ptr<ClothModel>(
         new YarnWovenModel(std::move(sheet), yarnBundleFabric(o.model.fabric, topology.spacing), model));

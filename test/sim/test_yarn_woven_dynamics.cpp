@@ -75,16 +75,6 @@ VecX restState(const YarnWovenModel& m) {
   return x;
 }
 
-// Every crossing's position pinned where it is (the sliding DOFs and the yarn ends stay free).
-PinnedNodes pinCrossings(const YarnWovenModel& m, const VecX& x) {
-  PinnedNodes pins;
-  for (std::size_t k = 0; k < m.sheet().grid.crossings.size(); ++k) {
-    pins.nodes.push_back(static_cast<Index>(k));
-    pins.anchors.push_back(x.segment<3>(5 * static_cast<Eigen::Index>(k)));
-  }
-  return pins;
-}
-
 // The warp piece along the middle line and its end node at high x.
 const YarnPiece& middleWarp(const YarnWovenModel& m) {
   for (const YarnPiece& p : m.sheet().grid.pieces)

@@ -25,16 +25,7 @@ namespace {
 
 using test_support::ThreadScope;
 
-Eigen::MatrixXd dense(const BlockSparseMatrix& a) {
-  const BlockPattern& p = a.pattern();
-  const int b = p.blockSize();
-  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(p.numNodes() * b, p.numNodes() * b);
-  for (Index i = 0; i < p.numNodes(); ++i)
-    for (Index k = p.rowStart()[i]; k < p.rowStart()[i + 1]; ++k)
-      for (int r = 0; r < b; ++r)
-        for (int c = 0; c < b; ++c) m(i * b + r, p.column()[k] * b + c) = a.block(k)[r * b + c];
-  return m;
-}
+using sim_test_support::denseMatrix;
 
 ClothModelSpec yarnSpec(std::map<std::string, std::string> options = {}) { return ClothModelSpec("yarn_woven", options); }
 
@@ -133,7 +124,7 @@ TEST(YarnWovenModel, JacobiansMatchFiniteDifferences) {
   ForceJacobians jac = m.makeJacobians();
   VecX f;
   m.computeForces(x, v, f, &jac);
-  const Eigen::MatrixXd dfdx = dense(jac.dfdx), dfdv = dense(jac.dfdv);
+  const Eigen::MatrixXd dfdx = denseMatrix(jac.dfdx), dfdv = denseMatrix(jac.dfdv);
   const Real h = 1e-8;
   Eigen::MatrixXd fdx(x.size(), x.size()), fdv(x.size(), x.size());
   for (Index d = 0; d < x.size(); ++d) {
@@ -178,14 +169,14 @@ TEST(YarnWovenModel, ClampedJacobiansAreNegativeSemiDefinite) {
   ForceJacobians jac = m.makeJacobians();
   VecX f;
   m.computeForces(x, scene.v0, f, &jac);
-  const Eigen::MatrixXd k = -dense(jac.dfdx), c = -dense(jac.dfdv);
+  const Eigen::MatrixXd k = -denseMatrix(jac.dfdx), c = -denseMatrix(jac.dfdv);
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(k).eigenvalues().minCoeff(), -1e-9 * k.norm());
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(c).eigenvalues().minCoeff(), -1e-9 * c.norm());
   // The exact Hessian of the same state is indefinite (compressed and bent yarns).
   DrapeScene exact = smallSheet(yarnSpec({{"gravity", "false"}, {"exact_hessian", "true"}}));
   ForceJacobians jac_exact = exact.model->makeJacobians();
   exact.model->computeForces(x, exact.v0, f, &jac_exact);
-  const Eigen::MatrixXd ke = -dense(jac_exact.dfdx);
+  const Eigen::MatrixXd ke = -denseMatrix(jac_exact.dfdx);
   EXPECT_LT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(ke).eigenvalues().minCoeff(), -1e-6 * ke.norm());
 }
 
@@ -196,7 +187,7 @@ TEST(YarnWovenModel, MassMatrixIsSymmetricPositiveDefiniteAndMatchesItsProduct) 
   BlockSparseMatrix a(&m.jacobianPattern());
   a.setZero();
   m.addMassMatrix(x, 1.0, a);
-  const Eigen::MatrixXd M = dense(a);
+  const Eigen::MatrixXd M = denseMatrix(a);
   EXPECT_LT((M - M.transpose()).cwiseAbs().maxCoeff(), 1e-20);
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M).eigenvalues().minCoeff(), 0);
   std::mt19937 rng(2);

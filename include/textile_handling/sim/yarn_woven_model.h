@@ -18,6 +18,7 @@
 #include "textile_handling/sim/cloth_model.h"
 #include "textile_handling/sim/cloth_topology.h"
 #include "textile_handling/sim/woven_fabric.h"
+#include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_grid.h"
 #include "textile_handling/sim/yarn_sheet.h"
 
@@ -66,6 +67,8 @@ YarnGrid yarnGridOnParticles(const ParticleTopology& topology, const WeavePatter
 /// the jamming angle keep their value. Densities become 1 / spacing. n = 1 is the real fabric.
 /// Exact for equal warp and weft densities; for unequal ones both directions get the mean.
 WovenFabric yarnBundleFabric(const WovenFabric& fabric, Real spacing);
+/// The bundle size n = spacing (warp density + weft density) / 2 of yarnBundleFabric().
+Real yarnBundleSize(const WovenFabric& fabric, Real spacing);
 
 class YarnWovenModel : public ClothModel {
  public:
@@ -126,6 +129,11 @@ class YarnWovenModel : public ClothModel {
     bool interlaced = false;
     std::array<Index, 9> slot{};
   };
+  /// A free sliding DOF of a crossing: where sliding friction acts.
+  struct SlidingDof {
+    Eigen::Index dof = 0;
+    std::size_t crossing = 0;
+  };
   /// Two crossings neighbouring along one yarn: their sliding DOFs on it (lower arc length first), the
   /// contact distance d and the block slots (00, 01, 10, 11).
   struct ContactPair {
@@ -134,10 +142,17 @@ class YarnWovenModel : public ClothModel {
     Real distance = 0;
     std::array<Index, 4> slot{};
   };
-  void assembleHessian(const VecX& q, bool clamped, bool with_gravity, Real scale, BlockSparseMatrix& a) const;
+  /// Adds scale times the Hessian of stretch and bending (clamped or exact), held DOFs left out.
+  void assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const;
+  /// The diagonal entry of `dof` in a matrix on the model's pattern.
+  Real& diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const;
   // Crossing terms (yarn_woven_crossings.cpp).
   void buildCrossingTerms(const std::vector<std::array<Index, 4>>& around);
   void updateCompression(const VecX& q);
+  /// The lagged F_n at a pair's crossing (0 before the first evaluation).
+  Real pairCompression(const ShearPair& p) const;
+  /// The pair's shear term: k_x (1 + c_n F_n), L, phi_j, c_j and whether it jams.
+  yarn::ShearParameters shearParameters(const ShearPair& p, Real F_n) const;
   Real crossingEnergy(const VecX& q) const;
   /// Which crossing terms addCrossingForces() adds.
   enum CrossingTerms { kConservativeTerms = 1, kFrictionTerms = 2, kAllCrossingTerms = 3 };
@@ -165,6 +180,7 @@ class YarnWovenModel : public ClothModel {
   // Crossing terms: stencils, constants, lagged compression and friction anchors.
   std::vector<ShearPair> shear_pairs_;
   std::vector<ContactPair> contacts_;
+  std::vector<SlidingDof> sliding_dofs_;
   Real k_x_ = 0, k_f_ = 0, d_f_ = 0, k_fphi_ = 0, mu_phi_ = 0, c_n_ = 0, k_c_ = 0, spacing_ = 0;
   WovenFabric compression_fabric_;     ///< bending scaled by n^3: a bundle crossing's n^2 real crimps
   std::vector<Real> compression_;      ///< F_n per crossing, lagged
