@@ -52,6 +52,9 @@ std::vector<double> parseList(const std::string& text) {
 Real g_linear_tolerance = 0;  // --linear-tolerance (0: the solver's default)
 Real g_accept_tolerance = 0;  // --accept-tolerance (0: the solver's default)
 Real g_newton_tolerance = 0;  // --newton-tolerance (0: the solver's default)
+std::string g_preconditioner;  // --preconditioner (empty: the solver's default)
+bool g_warm_start = false;     // --warm-start 1
+int g_smoothing_steps = -1;    // --smoothing-steps (-1: the solver's default)
 
 DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
   const Real L = 1e-3, side = (side_crossings - 1) * L;
@@ -72,6 +75,9 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   if (g_linear_tolerance > 0) s.settings.solver.relative_tolerance = g_linear_tolerance;
   if (g_accept_tolerance > 0) s.settings.solver.accept_tolerance = g_accept_tolerance;
   if (g_newton_tolerance > 0) s.settings.solver.newton_tolerance = g_newton_tolerance;
+  if (!g_preconditioner.empty()) s.settings.solver.preconditioner = preconditionerFromString(g_preconditioner);
+  s.settings.solver.warm_start = g_warm_start;
+  if (g_smoothing_steps >= 0) s.settings.solver.smoothing_steps = g_smoothing_steps;
   return s;
 }
 
@@ -79,27 +85,47 @@ struct CostRow {
   int side = 0, threads = 0, repeat = 0;
   long crossings = 0, steps = 0;
   double wall_ms_per_step = 0, us_per_crossing_step = 0, assembly_ms = 0, solve_ms = 0, iterations = 0;
+  double newton_iterations = 0;
+  double max_deviation_m = -1;  // largest node distance from the reference run; -1 = no reference
   bool diverged = false;
   std::string reason;
 };
 
-CostRow measure(int side, int threads, int repeat, int steps, Real dt, IntegratorType integrator) {
-  omp_set_num_threads(threads);
-  const DrapeSceneSpec spec = sheetSpec(side, integrator, dt, steps * dt * (1 + 1e-9));
+// Positions of the sheet after `steps` steps of the reference run (solver tolerance `tolerance`).
+VecX referencePositions(int side, int steps, Real dt, IntegratorType integrator, Real tolerance) {
+  DrapeSceneSpec spec = sheetSpec(side, integrator, dt, (steps + 1) * dt * (1 + 1e-9));
+  spec.settings.solver.relative_tolerance = tolerance;
+  spec.settings.solver.max_iterations = 20000;
+  spec.settings.solver.accept_tolerance = 0;
   DrapeScene scene = buildDrapeScene(spec);
   DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
-  const auto t0 = std::chrono::steady_clock::now();
   const RunResult r = sim.run();
+  if (r.diverged) throw std::runtime_error("the reference run (tolerance " + std::to_string(tolerance) + ") failed: " + r.divergence_reason);
+  return sim.positions();
+}
+
+CostRow measure(int side, int threads, int repeat, int steps, Real dt, IntegratorType integrator, const VecX& reference) {
+  omp_set_num_threads(threads);
+  const DrapeSceneSpec spec = sheetSpec(side, integrator, dt, (steps + 1) * dt * (1 + 1e-9));
+  DrapeScene scene = buildDrapeScene(spec);
+  DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  // The first step allocates the Jacobians and the solver's structures once per run: it is left out.
+  const RunResult first = sim.run(dt * (1 + 1e-9));
+  const auto t0 = std::chrono::steady_clock::now();
+  const RunResult r = first.diverged ? first : sim.run();
   const double wall = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   CostRow row;
   row.side = side, row.threads = threads, row.repeat = repeat;
   row.crossings = scene.model->numNodes();
-  row.steps = std::max<long>(r.steps, 1);
+  row.steps = std::max<long>(r.steps - first.steps, 1);
   row.wall_ms_per_step = wall / row.steps;
   row.us_per_crossing_step = 1e3 * row.wall_ms_per_step / row.crossings;
-  row.assembly_ms = r.assembly_ms / row.steps;
-  row.solve_ms = r.solve_ms / row.steps;
-  row.iterations = static_cast<double>(r.solver_iterations) / row.steps;
+  row.assembly_ms = (r.assembly_ms - first.assembly_ms) / row.steps;
+  row.solve_ms = (r.solve_ms - first.solve_ms) / row.steps;
+  row.iterations = static_cast<double>(r.solver_iterations - first.solver_iterations) / row.steps;
+  row.newton_iterations = static_cast<double>(r.newton_iterations - first.newton_iterations) / row.steps;
+  if (reference.size() == sim.positions().size() && !r.diverged)
+    row.max_deviation_m = (sim.positions() - reference).reshaped(3, reference.size() / 3).colwise().norm().maxCoeff();
   row.diverged = r.diverged;
   row.reason = r.divergence_reason;
   return row;
@@ -116,7 +142,7 @@ int main(int argc, char** argv) {
   std::string out = "out/yarn_step_bench", integrator_name = "semi_implicit";
   std::vector<double> sides = {32, 64, 128, 250}, stable_dts = {0.001, 0.002, 0.005, 0.01, 0.02, 0.05};
   int steps = 10, repeats = 3, stable_side = 25;
-  Real dt = 1e-3, stable_time = 0.5;
+  Real dt = 1e-3, stable_time = 0.5, reference_tolerance = 1e-10;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (i + 1 >= argc) {
@@ -136,6 +162,10 @@ int main(int argc, char** argv) {
     else if (a == "--linear-tolerance") g_linear_tolerance = std::atof(v.c_str());
     else if (a == "--accept-tolerance") g_accept_tolerance = std::atof(v.c_str());
     else if (a == "--newton-tolerance") g_newton_tolerance = std::atof(v.c_str());
+    else if (a == "--preconditioner") g_preconditioner = v;
+    else if (a == "--warm-start") g_warm_start = std::atoi(v.c_str()) != 0;
+    else if (a == "--smoothing-steps") g_smoothing_steps = std::atoi(v.c_str());
+    else if (a == "--reference-tolerance") reference_tolerance = std::atof(v.c_str());
     else {
       std::cerr << "yarn_step_bench: unknown option " << a << "\n";
       return 2;
@@ -156,23 +186,26 @@ int main(int argc, char** argv) {
     return 4;
   }
   cost << "side,crossings,threads,repeat,integrator,dt_s,steps,wall_ms_per_step,us_per_crossing_step,assembly_ms_per_step,"
-          "solve_ms_per_step,solver_iterations_per_step,diverged\n";
+          "solve_ms_per_step,solver_iterations_per_step,newton_iterations_per_step,max_deviation_m,diverged\n";
   std::vector<ChartPoint> chart;
   try {
     for (double side_value : sides) {
       const int side = static_cast<int>(side_value);
       std::map<int, std::vector<double>> per_thread;
+      const VecX reference = reference_tolerance > 0 ? referencePositions(side, steps, dt, integrator, reference_tolerance) : VecX();
       for (int r = 0; r < repeats; ++r)
         for (int threads : {1, 2}) {
-          const CostRow row = measure(side, threads, r, steps, dt, integrator);
+          const CostRow row = measure(side, threads, r, steps, dt, integrator, reference);
           cost << row.side << ',' << row.crossings << ',' << row.threads << ',' << row.repeat << ',' << integrator_name << ','
                << dt << ',' << row.steps << ',' << row.wall_ms_per_step << ',' << row.us_per_crossing_step << ','
-               << row.assembly_ms << ',' << row.solve_ms << ',' << row.iterations << ',' << (row.diverged ? 1 : 0) << '\n';
+               << row.assembly_ms << ',' << row.solve_ms << ',' << row.iterations << ',' << row.newton_iterations << ','
+               << row.max_deviation_m << ',' << (row.diverged ? 1 : 0) << '\n';
           cost.flush();
           per_thread[threads].push_back(row.us_per_crossing_step);
           std::printf("side %d (%ld crossings), %d thread(s), repeat %d: %.3g us per crossing-step (assembly %.3g ms, solve "
-                      "%.3g ms, %.1f solver iterations per step)%s\n",
+                      "%.3g ms, %.1f solver and %.2f Newton iterations per step, %.3g m from the reference)%s\n",
                       side, row.crossings, threads, r, row.us_per_crossing_step, row.assembly_ms, row.solve_ms, row.iterations,
+                      row.newton_iterations, row.max_deviation_m,
                       row.diverged ? (" DIVERGED: " + row.reason).c_str() : "");
           std::fflush(stdout);
           chart.push_back({static_cast<double>(row.crossings), row.us_per_crossing_step, "",

@@ -173,6 +173,7 @@ bool DrapeSimulation::stepOnce() {
     StepOutcome out = integrator_->step(model_, pins_, x_, v_, t_, h, x_new_, v_new_);
     result_.step_ms += msSince(t0);
     result_.solver_iterations += out.solver_iterations;
+    result_.newton_iterations += out.newton_iterations;
     result_.assembly_ms += out.assembly_ms;
     result_.solve_ms += out.solve_ms;
     result_.degenerate_terms = std::max(result_.degenerate_terms, out.degenerate_terms);

@@ -8,6 +8,7 @@
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_normal_force.h"
 #include "textile_handling/sim/yarn_woven_model.h"
+#include "ordered_parallel.h"
 
 namespace textile_handling {
 
@@ -129,27 +130,34 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
           for (int c = 0; c < 3; ++c) blk[r * kB + c] += factor * m(3 * a + r, 3 * b + c);
       }
   };
-  for (std::size_t k = 0; k < shear_pairs_.size() && (conservative || friction); ++k) {
-    const ShearPair& p = shear_pairs_[k];
-    const Real F_n = pairCompression(p);
-    const yarn::ShearParameters s = shearParameters(p, F_n);
-    const yarn::CrossingVector x = crossingStencil(q, p.node);
-    if (conservative && f) {
-      const yarn::CrossingVector g = yarn::shearGradient(x, s);
-      if (g.allFinite())
-        for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) -= g.segment<3>(3 * a);
-    }
-    if (conservative && dfdx) {
-      const yarn::CrossingMatrix h = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
-      if (h.allFinite()) addPositions(p, h, -scale);
-    }
-    if (!friction) continue;
-    const yarn::ShearFriction fr = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, clamped);
-    if (!fr.force.allFinite() || !fr.jacobian.allFinite()) continue;
-    if (f)
-      for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) += fr.force.segment<3>(3 * a);
-    if (dfdx) addPositions(p, fr.jacobian, scale);
-  }
+  // The kernels of a pair run in parallel, their sums in pair order (ordered_parallel.h).
+  struct PairTerms {
+    yarn::CrossingVector gradient;
+    yarn::CrossingMatrix hessian;
+    yarn::ShearFriction friction;
+  };
+  const bool with_f = conservative && f, with_dfdx = conservative && dfdx;
+  computeInParallelApplyInOrder<PairTerms>(
+      conservative || friction ? shear_pairs_.size() : 0,
+      [&](std::size_t k, PairTerms& t) {
+        const ShearPair& p = shear_pairs_[k];
+        const Real F_n = pairCompression(p);
+        const yarn::ShearParameters s = shearParameters(p, F_n);
+        const yarn::CrossingVector x = crossingStencil(q, p.node);
+        if (with_f) t.gradient = yarn::shearGradient(x, s);
+        if (with_dfdx) t.hessian = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
+        if (friction) t.friction = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, clamped);
+      },
+      [&](std::size_t k, const PairTerms& t) {
+        const ShearPair& p = shear_pairs_[k];
+        if (with_f && t.gradient.allFinite())
+          for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) -= t.gradient.segment<3>(3 * a);
+        if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale);
+        if (!friction || !t.friction.force.allFinite() || !t.friction.jacobian.allFinite()) return;
+        if (f)
+          for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) += t.friction.force.segment<3>(3 * a);
+        if (dfdx) addPositions(p, t.friction.jacobian, scale);
+      });
   for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
     const ContactPair& p = contacts_[k];
     const Real u0 = q[static_cast<Eigen::Index>(p.dof[0])], u1 = q[static_cast<Eigen::Index>(p.dof[1])];

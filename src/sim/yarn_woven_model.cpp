@@ -9,6 +9,7 @@
 
 #include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/yarn_kernels.h"
+#include "ordered_parallel.h"
 #include "yarn_stencils.h"
 
 namespace textile_handling {
@@ -153,7 +154,6 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
     for (Stencil& s : *list)
       for (int i = 0; i < s.nodes; ++i)
         for (int j = 0; j < s.nodes; ++j) s.slot[static_cast<std::size_t>(i * s.nodes + j)] = pattern_.find(s.node[i], s.node[j]);
-  scratch_ = BlockSparseMatrix(&pattern_);
   stiffness_ = BlockSparseMatrix(&pattern_);
   buildCrossingTerms(around);
 
@@ -185,18 +185,24 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
 
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
-  for (const Stencil& s : segments_) {
-    const auto dofs = dofsOf<2>(s);
-    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
-    const yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
-    if (h.allFinite()) scatterBlocks<2>(h, s, scale, a);
-  }
-  for (const Stencil& s : bends_) {
-    const auto dofs = dofsOf<3>(s);
-    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
-    const yarn::BendMatrix h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
-    if (h.allFinite()) scatterBlocks<3>(h, s, scale, a);
-  }
+  computeInParallelApplyInOrder<yarn::SegmentMatrix>(
+      segments_.size(),
+      [&](std::size_t k, yarn::SegmentMatrix& h) {
+        const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
+        h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
+      },
+      [&](std::size_t k, const yarn::SegmentMatrix& h) {
+        if (h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a);
+      });
+  computeInParallelApplyInOrder<yarn::BendMatrix>(
+      bends_.size(),
+      [&](std::size_t k, yarn::BendMatrix& h) {
+        const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
+        h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
+      },
+      [&](std::size_t k, const yarn::BendMatrix& h) {
+        if (h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a);
+      });
 }
 
 Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const {
@@ -215,27 +221,30 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   const VecX q = kernelCoordinates(x);
   VecX grad = VecX::Zero(q.size());
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
-  for (const Stencil& s : segments_) {
-    const auto dofs = dofsOf<2>(s);
-    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
-    yarn::SegmentVector g = yarn::stretchGradient(e, k_s);
-    if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
-    if (!(e[7] - e[3] > 0) || !g.allFinite()) {
-      ++report.degenerate_terms;  // material slid out of the segment, or a zero-length segment
-      continue;
-    }
-    yarn_stencil::scatterAdd<2>(g, dofs, &grad);
-  }
-  for (const Stencil& s : bends_) {
-    const auto dofs = dofsOf<3>(s);
-    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
-    const yarn::BendVector g = yarn::bendGradient(e, k_b);
-    if (!(e[11] - e[3] > 0) || !g.allFinite()) {
-      ++report.degenerate_terms;
-      continue;
-    }
-    yarn_stencil::scatterAdd<3>(g, dofs, &grad);
-  }
+  // A gradient with a NaN marks a degenerate term: material slid out of the segment, or zero length.
+  computeInParallelApplyInOrder<yarn::SegmentVector>(
+      segments_.size(),
+      [&](std::size_t k, yarn::SegmentVector& g) {
+        const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
+        g = yarn::stretchGradient(e, k_s);
+        if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
+        if (!(e[7] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
+      },
+      [&](std::size_t k, const yarn::SegmentVector& g) {
+        if (g.allFinite()) yarn_stencil::scatterAdd<2>(g, dofsOf<2>(segments_[k]), &grad);
+        else ++report.degenerate_terms;
+      });
+  computeInParallelApplyInOrder<yarn::BendVector>(
+      bends_.size(),
+      [&](std::size_t k, yarn::BendVector& g) {
+        const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
+        g = yarn::bendGradient(e, k_b);
+        if (!(e[11] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
+      },
+      [&](std::size_t k, const yarn::BendVector& g) {
+        if (g.allFinite()) yarn_stencil::scatterAdd<3>(g, dofsOf<3>(bends_[k]), &grad);
+        else ++report.degenerate_terms;
+      });
   f = -grad;
   // The normal compression is lagged: evaluated at the first state the model sees and then once per
   // accepted step (acceptStep), never inside a step.
@@ -253,15 +262,14 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     assembleHessian(q, true, 1, stiffness_);
     addCrossingForces(q, v, nullptr, &stiffness_, nullptr, true, kConservativeTerms, -1);
   }
-  scratch_.setZero();
-  if (beta > 0)
-    std::transform(stiffness_.values().begin(), stiffness_.values().end(), scratch_.values().begin(),
-                   [beta](Real k) { return beta * k; });
-  if (alpha > 0) addMassMatrix(x, alpha, scratch_);
-  if (alpha > 0 || beta > 0) {
-    VecX damping;
-    scratch_.multiply(v, damping);
-    f -= damping;
+  // Damping as two products (beta K v + alpha M(x) v): no third matrix is formed.
+  if (beta > 0) {
+    stiffness_.multiply(v, damping_);
+    f -= beta * damping_;
+  }
+  if (alpha > 0) {
+    multiplyMass(x, v, damping_);
+    f -= alpha * damping_;
   }
   for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
@@ -275,8 +283,13 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
       addGravityHessian(-1, jac->dfdx);
       addCrossingForces(q, v, nullptr, &jac->dfdx, nullptr, false, kConservativeTerms, 1);
     }
-    std::transform(scratch_.values().begin(), scratch_.values().end(), jac->dfdv.values().begin(),
-                   [](Real a) { return -a; });
+    // df/dv = -(alpha M(x) + beta K).
+    if (beta > 0)
+      std::transform(stiffness_.values().begin(), stiffness_.values().end(), jac->dfdv.values().begin(),
+                     [beta](Real k) { return -beta * k; });
+    else
+      jac->dfdv.setZero();
+    if (alpha > 0) addMassMatrix(x, -alpha, jac->dfdv);
     // The held DOFs' mass entries are not damping: a held DOF has no force.
     for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
     addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
@@ -311,10 +324,12 @@ Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
 
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
-  for (const Stencil& s : segments_) {
-    const auto dofs = dofsOf<2>(s);
-    scatterBlocks<2>(yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m), s, scale, a);
-  }
+  computeInParallelApplyInOrder<yarn::SegmentMatrix>(
+      segments_.size(),
+      [&](std::size_t k, yarn::SegmentMatrix& m) {
+        m = yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k])), fabric_.linear_density_kg_per_m);
+      },
+      [&](std::size_t k, const yarn::SegmentMatrix& m) { scatterBlocks<2>(m, segments_[k], scale, a); });
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];
 }
 

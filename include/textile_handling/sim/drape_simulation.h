@@ -60,6 +60,9 @@ struct RunResult {
   long steps = 0;                 ///< accepted steps
   long rejected_steps = 0;
   long solver_iterations = 0;
+  /// Newton iterations (linear solves) of backward_euler_newton steps, rejected steps included; counted
+  /// since the simulation was made or resumed (not part of a saved state).
+  long newton_iterations = 0;
   Real wall_time = 0;             ///< [s]
   Real kinetic_energy = 0;        ///< at the end [J]
   Real potential_energy = 0;      ///< at the end [J]

@@ -187,7 +187,7 @@ class YarnWovenModel : public ClothModel {
   VecX slide_anchor_;                  ///< per DOF (sliding DOFs of crossings used), as displacements
   std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
   BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
-  BlockSparseMatrix scratch_;    // alpha M + beta K
+  VecX damping_;                 // K v and M v of the damping force, reused
 };
 
 }  // namespace textile_handling

@@ -1,0 +1,27 @@
+// Internal to sim_core: a loop whose expensive part runs on all OpenMP threads while its results are
+// added up in a fixed order, so that the sums are bitwise the same for every thread count (and equal
+// to the plain serial loop's).
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+#include <vector>
+
+namespace textile_handling {
+
+/// For i = 0 .. count - 1: compute(i, local) fills `local` (a default-constructed Local) in parallel,
+/// then apply(i, local) runs serially in increasing i. Works in chunks of `chunk` items so the buffer
+/// stays small (chunk Locals). compute must not write shared state; apply may.
+template <class Local, class Compute, class Apply>
+void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&& apply, std::size_t chunk = 2048) {
+  if (count == 0) return;
+  std::vector<Local> buffer(std::min(count, chunk));
+  for (std::size_t start = 0; start < count; start += chunk) {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(std::min(chunk, count - start));
+#pragma omp parallel for schedule(static) if (n > 64)
+    for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+    for (std::ptrdiff_t k = 0; k < n; ++k) apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+  }
+}
+
+}  // namespace textile_handling
