@@ -4,16 +4,23 @@
 //   yarn_step_bench [--out DIR] [--sides N1,N2,...] [--steps K] [--dt S] [--integrator NAME]
 //                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
 //                   [--linear-tolerance T] [--accept-tolerance T] [--newton-tolerance T]
+//                   [--preconditioner two_level|block_jacobi] [--smoothing-steps S] [--warm-start 0|1]
+//                   [--self-collision 0|1] [--reference-tolerance T]
 //
 // Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
-// from its two upper corners and released flat, K fixed steps of --dt (default 1 ms, the source's
-// step) with --integrator (default semi_implicit) and the linear solver's relative tolerance
-// --linear-tolerance (default: the solver settings' 1e-6; --accept-tolerance accepts an iterate at the
-// iteration cap whose relative residual is below it; --newton-tolerance sets backward_euler_newton's). For every size, one and two threads run
-// interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time per step and per
-// crossing-step, the split into assembly (forces and Jacobians) and solve, and the solver iterations
-// per step. Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each
-// fixed step of --stable-dts; stable = no divergence.
+// from its two upper corners and released flat, one untimed step (it allocates the Jacobians and the
+// solver's structures) and then K timed fixed steps of --dt (default 1 ms, the source's step) with
+// --integrator (default semi_implicit). The solver options set the SolverSettings fields of the same
+// names (defaults: the settings' own; --linear-tolerance is the relative residual of CG / PCR);
+// --self-collision 1 runs the scene's v3 self-collision pass after every step.
+// For every size, one reference run with the linear tolerance --reference-tolerance (default 1e-10;
+// 0 = none) gives the accuracy figure: the largest node distance from it after the same steps. Then
+// one and two threads run interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time
+// per step and per crossing-step, the split into assembly (forces, Jacobians and the system), solve
+// and collisions per step, the forces alone and the Jacobians' extra time per evaluation (median of 3
+// at the final state), solver and Newton iterations per step, and the distance from the reference.
+// Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each fixed step
+// of --stable-dts; stable = no divergence.
 //
 // Writes DIR/step_cost.csv, DIR/stable_step.csv and DIR/step_cost.png (microseconds per crossing-step
 // against crossings); prints the median per size and thread count and the largest stable step.
@@ -55,6 +62,7 @@ Real g_newton_tolerance = 0;  // --newton-tolerance (0: the solver's default)
 std::string g_preconditioner;  // --preconditioner (empty: the solver's default)
 bool g_warm_start = false;     // --warm-start 1
 int g_smoothing_steps = -1;    // --smoothing-steps (-1: the solver's default)
+bool g_self_collision = false; // --self-collision 1: the scene's v3 pass after every step
 
 DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
   const Real L = 1e-3, side = (side_crossings - 1) * L;
@@ -78,6 +86,8 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   if (!g_preconditioner.empty()) s.settings.solver.preconditioner = preconditionerFromString(g_preconditioner);
   s.settings.solver.warm_start = g_warm_start;
   if (g_smoothing_steps >= 0) s.settings.solver.smoothing_steps = g_smoothing_steps;
+  s.self_collision = g_self_collision;
+  if (g_self_collision) s.collision.version = SelfCollisionVersion::kRollback;
   return s;
 }
 
@@ -86,6 +96,7 @@ struct CostRow {
   long crossings = 0, steps = 0;
   double wall_ms_per_step = 0, us_per_crossing_step = 0, assembly_ms = 0, solve_ms = 0, iterations = 0;
   double newton_iterations = 0;
+  double forces_ms = 0, jacobians_ms = 0, collisions_ms = 0;  // per evaluation / per step
   double max_deviation_m = -1;  // largest node distance from the reference run; -1 = no reference
   bool diverged = false;
   std::string reason;
@@ -104,11 +115,33 @@ VecX referencePositions(int side, int steps, Real dt, IntegratorType integrator,
   return sim.positions();
 }
 
+// One evaluation of the forces alone, and the extra time the Jacobians take (forces with Jacobians
+// minus forces alone), at state x with zero velocity: the median of 3 each [ms].
+void splitForcesAndJacobians(ClothModel& model, const VecX& x, double* forces_ms, double* jacobians_ms) {
+  const VecX v = VecX::Zero(x.size());
+  VecX f;
+  ForceJacobians jac = model.makeJacobians();
+  std::vector<double> alone, with;
+  for (int k = 0; k < 3; ++k) {
+    auto t0 = std::chrono::steady_clock::now();
+    model.computeForces(x, v, f, nullptr);
+    alone.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    t0 = std::chrono::steady_clock::now();
+    model.computeForces(x, v, f, &jac);
+    with.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(alone.begin(), alone.end());
+  std::sort(with.begin(), with.end());
+  *forces_ms = alone[1];
+  *jacobians_ms = std::max(0.0, with[1] - alone[1]);
+}
+
 CostRow measure(int side, int threads, int repeat, int steps, Real dt, IntegratorType integrator, const VecX& reference) {
   omp_set_num_threads(threads);
   const DrapeSceneSpec spec = sheetSpec(side, integrator, dt, (steps + 1) * dt * (1 + 1e-9));
   DrapeScene scene = buildDrapeScene(spec);
   DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+  sim.setPostStepPass(scene.postStepPass());
   // The first step allocates the Jacobians and the solver's structures once per run: it is left out.
   const RunResult first = sim.run(dt * (1 + 1e-9));
   const auto t0 = std::chrono::steady_clock::now();
@@ -124,6 +157,8 @@ CostRow measure(int side, int threads, int repeat, int steps, Real dt, Integrato
   row.solve_ms = (r.solve_ms - first.solve_ms) / row.steps;
   row.iterations = static_cast<double>(r.solver_iterations - first.solver_iterations) / row.steps;
   row.newton_iterations = static_cast<double>(r.newton_iterations - first.newton_iterations) / row.steps;
+  row.collisions_ms = (r.post_step_ms - first.post_step_ms) / row.steps;
+  splitForcesAndJacobians(*scene.model, sim.state(), &row.forces_ms, &row.jacobians_ms);
   if (reference.size() == sim.positions().size() && !r.diverged)
     row.max_deviation_m = (sim.positions() - reference).reshaped(3, reference.size() / 3).colwise().norm().maxCoeff();
   row.diverged = r.diverged;
@@ -165,6 +200,7 @@ int main(int argc, char** argv) {
     else if (a == "--preconditioner") g_preconditioner = v;
     else if (a == "--warm-start") g_warm_start = std::atoi(v.c_str()) != 0;
     else if (a == "--smoothing-steps") g_smoothing_steps = std::atoi(v.c_str());
+    else if (a == "--self-collision") g_self_collision = std::atoi(v.c_str()) != 0;
     else if (a == "--reference-tolerance") reference_tolerance = std::atof(v.c_str());
     else {
       std::cerr << "yarn_step_bench: unknown option " << a << "\n";
@@ -186,7 +222,8 @@ int main(int argc, char** argv) {
     return 4;
   }
   cost << "side,crossings,threads,repeat,integrator,dt_s,steps,wall_ms_per_step,us_per_crossing_step,assembly_ms_per_step,"
-          "solve_ms_per_step,solver_iterations_per_step,newton_iterations_per_step,max_deviation_m,diverged\n";
+          "solve_ms_per_step,forces_ms,jacobians_ms,collisions_ms_per_step,solver_iterations_per_step,newton_iterations_per_step,"
+          "max_deviation_m,diverged\n";
   std::vector<ChartPoint> chart;
   try {
     for (double side_value : sides) {
@@ -198,13 +235,16 @@ int main(int argc, char** argv) {
           const CostRow row = measure(side, threads, r, steps, dt, integrator, reference);
           cost << row.side << ',' << row.crossings << ',' << row.threads << ',' << row.repeat << ',' << integrator_name << ','
                << dt << ',' << row.steps << ',' << row.wall_ms_per_step << ',' << row.us_per_crossing_step << ','
-               << row.assembly_ms << ',' << row.solve_ms << ',' << row.iterations << ',' << row.newton_iterations << ','
+               << row.assembly_ms << ',' << row.solve_ms << ',' << row.forces_ms << ',' << row.jacobians_ms << ','
+               << row.collisions_ms << ',' << row.iterations << ',' << row.newton_iterations << ','
                << row.max_deviation_m << ',' << (row.diverged ? 1 : 0) << '\n';
           cost.flush();
           per_thread[threads].push_back(row.us_per_crossing_step);
           std::printf("side %d (%ld crossings), %d thread(s), repeat %d: %.3g us per crossing-step (assembly %.3g ms, solve "
-                      "%.3g ms, %.1f solver and %.2f Newton iterations per step, %.3g m from the reference)%s\n",
-                      side, row.crossings, threads, r, row.us_per_crossing_step, row.assembly_ms, row.solve_ms, row.iterations,
+                      "%.3g ms, collisions %.3g ms per step; forces %.3g ms, Jacobians %.3g ms per evaluation; %.1f solver "
+                      "and %.2f Newton iterations per step, %.3g m from the reference)%s\n",
+                      side, row.crossings, threads, r, row.us_per_crossing_step, row.assembly_ms, row.solve_ms,
+                      row.collisions_ms, row.forces_ms, row.jacobians_ms, row.iterations,
                       row.newton_iterations, row.max_deviation_m,
                       row.diverged ? (" DIVERGED: " + row.reason).c_str() : "");
           std::fflush(stdout);

@@ -161,6 +161,26 @@ TEST(YarnBend, ClampedHessianIsPositiveSemiDefinite) {
   EXPECT_GT(indefinite, 0);  // the exact bending Hessian is indefinite for bent yarns
 }
 
+// Gently bent yarns (a hanging sheet's stencils) have slightly indefinite Hessians; clamping moves
+// them by no more than a small multiple of their most negative eigenvalue.
+TEST(YarnBend, ClampedHessianOfAGentleBendStaysCloseToTheExactOne) {
+  std::mt19937 rng(23);
+  int indefinite = 0;
+  for (Real theta : {0.01, 0.03, 0.1, 0.2}) {
+    for (int trial = 0; trial < 10; ++trial) {
+      const BendVector q = bentStencil(rng, theta);
+      const BendMatrix exact = bendHessian(q, kKb), clamped = bendHessianClamped(q, kKb);
+      const Eigen::VectorXd full = eigenvalues(exact);
+      const Real scale = full.cwiseAbs().maxCoeff(), negative = std::max<Real>(0, -full.minCoeff());
+      indefinite += negative > 1e-9 * scale;
+      EXPECT_GE(eigenvalues(clamped).minCoeff(), -1e-9 * scale);
+      const Real moved = eigenvalues(clamped - exact).cwiseAbs().maxCoeff();
+      EXPECT_LE(moved, 10 * negative + 1e-9 * scale) << "theta " << theta << ", most negative " << negative << " of " << scale;
+    }
+  }
+  EXPECT_GT(indefinite, 0);
+}
+
 TEST(YarnGravity, GradientAndHessianMatchFiniteDifferences) {
   std::mt19937 rng(7);
   const Real rho = 5e-5;
