@@ -322,6 +322,19 @@ Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
   return worst;
 }
 
+std::vector<DrawnYarn> YarnWovenModel::drawnYarns() const {
+  std::vector<DrawnYarn> yarns;
+  yarns.reserve(sheet_.grid.pieces.size());
+  for (const YarnPiece& p : sheet_.grid.pieces) {
+    DrawnYarn y;
+    y.warp = p.warp;
+    y.line = p.line;
+    y.nodes.assign(p.nodes.begin(), p.nodes.end());
+    yarns.push_back(std::move(y));
+  }
+  return yarns;
+}
+
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
   computeInParallelApplyInOrder<yarn::SegmentMatrix>(

@@ -156,7 +156,7 @@ void writeOutputs(const std::string& out_dir, const DrapeScene& scene, const Dra
   if (!r.diverged) {
     std::string err;
     if (!writeRestShapePicture(out_dir + "/rest_shape.png", ParticleTopology::fromGrid(scene.grid), sim.positions(),
-                               {scene.hold_particle}, 400, &err))
+                               {scene.hold_particle}, scene.model->drawnYarns(), 400, &err))
       throw OutputError(err);
   }
 }

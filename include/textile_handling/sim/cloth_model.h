@@ -15,6 +15,7 @@
 // constant during a step.
 #pragma once
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,15 @@ namespace textile_handling {
 struct ForceJacobians {
   BlockSparseMatrix dfdx;
   BlockSparseMatrix dfdv;
+};
+
+/// One yarn of a model, as pictures draw it: its nodes in order along the yarn, and its direction.
+struct DrawnYarn {
+  std::vector<Index> nodes;  ///< node indices, in order of arc length along the yarn
+  bool warp = true;          ///< a warp yarn (along the textile's x axis) or a weft yarn (along y)
+  /// The yarn's line across the textile, counted per direction (the pieces of one line share it);
+  /// pictures thin out dense yarns by line.
+  std::size_t line = 0;
 };
 
 /// What a force evaluation found besides the forces.
@@ -91,6 +101,11 @@ class ClothModel {
   VecX positionsOf(const VecX& x) const;
   /// Writes the 3N positions `p` into the position DOFs of `x`; the other DOFs keep their values.
   void setPositions(const VecX& p, VecX& x) const;
+
+  // ---- Pictures -----------------------------------------------------------------------------------
+  /// The yarns to draw over the shape in pictures (writeRestShapePicture), as polylines of nodes;
+  /// empty for models without yarns (the particle models). Decorators forward it.
+  virtual std::vector<DrawnYarn> drawnYarns() const { return {}; }
 
   /// Convenience: allocates Jacobian storage on this model's pattern.
   ForceJacobians makeJacobians() const {

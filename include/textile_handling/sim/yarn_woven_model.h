@@ -105,6 +105,9 @@ class YarnWovenModel : public ClothModel {
   Real gravitationalEnergy(const VecX& x) const override;
   Real totalMass() const override { return total_mass_; }
 
+  /// One polyline per warp and per weft piece of the sheet: its nodes (crossings and ends) in order.
+  std::vector<DrawnYarn> drawnYarns() const override;
+
   const YarnSheet& sheet() const { return sheet_; }
   const WovenFabric& fabric() const { return fabric_; }
   /// The generalised coordinates of the kernels (absolute arc lengths u, v) of state x.
