@@ -104,6 +104,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
     : sheet_(std::move(sheet)), fabric_(std::move(fabric)), options_(std::move(options)),
       gravity_(0, 0, options_.gravity ? -kGravity : 0) {
   validateWovenFabric(fabric_);
+  validateTearTension(options_.tear_tension_n);
   const std::size_t n = sheet_.nodeCount(), dofs = sheet_.dofCount();
   if (n == 0) throw SimError("yarn_woven: the yarn sheet has no node");
   held_.assign(dofs, 0);
@@ -186,12 +187,14 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<2>(s);
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
     const yarn::SegmentMatrix h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
     if (h.allFinite()) scatterBlocks<2>(h, s, scale, a);
   }
   for (const Stencil& s : bends_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<3>(s);
     const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
     const yarn::BendMatrix h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
@@ -212,13 +215,15 @@ void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
 
 ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
   ForceReport report;
+  report.torn_segments = static_cast<Index>(tornSegmentCount());
   const VecX q = kernelCoordinates(x);
   VecX grad = VecX::Zero(q.size());
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
   for (const Stencil& s : segments_) {
     const auto dofs = dofsOf<2>(s);
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofs);
-    yarn::SegmentVector g = yarn::stretchGradient(e, k_s);
+    // A torn segment keeps only its gravity: the weight of its two halves (yarn_woven_tearing.cpp).
+    yarn::SegmentVector g = s.torn ? yarn::SegmentVector(yarn::SegmentVector::Zero()) : yarn::stretchGradient(e, k_s);
     if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
     if (!(e[7] - e[3] > 0) || !g.allFinite()) {
       ++report.degenerate_terms;  // material slid out of the segment, or a zero-length segment
@@ -227,6 +232,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     yarn_stencil::scatterAdd<2>(g, dofs, &grad);
   }
   for (const Stencil& s : bends_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<3>(s);
     const yarn::BendVector e = yarn_stencil::gather<3>(q, dofs);
     const yarn::BendVector g = yarn::bendGradient(e, k_b);
@@ -286,7 +292,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
 
 Real YarnWovenModel::potentialEnergy(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
-  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + crossingEnergy(q);
+  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + tornSegmentWeightEnergy(q) + crossingEnergy(q);
 }
 
 Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {
@@ -302,6 +308,7 @@ Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
   Real worst = 0;
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
     const Real ratio = (e.segment<3>(4) - e.segment<3>(0)).norm() / (e[7] - e[3]);
     worst = std::max(worst, std::isfinite(ratio) && ratio >= 0 ? ratio : std::numeric_limits<Real>::infinity());
@@ -312,9 +319,11 @@ Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<2>(s);
     scatterBlocks<2>(yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m), s, scale, a);
   }
+  addTornSegmentMass(q, scale, a);
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];
 }
 
@@ -322,6 +331,7 @@ void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const 
   const VecX q = kernelCoordinates(x);
   mv = VecX::Zero(v.size());
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<2>(s);
     yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
     for (int k = 0; k < 8; ++k)
@@ -331,6 +341,7 @@ void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const 
       if (held_[s.dof[static_cast<std::size_t>(k)]]) out[k] = 0;
     yarn_stencil::scatterAdd<2>(out, dofs, &mv);
   }
+  addTornSegmentMassProduct(q, v, mv);
   for (std::size_t d : sheet_.held_dofs)
     mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
 }

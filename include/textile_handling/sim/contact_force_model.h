@@ -44,7 +44,7 @@ class ContactForceModel : public ClothModel {
   Real potentialEnergy(const VecX& x) const override { return base_.potentialEnergy(x); }
   Vec3 nodePosition(const VecX& x, Index node) const override { return base_.nodePosition(x, node); }
   Real maxEdgeStretch(const VecX& x) const override { return base_.maxEdgeStretch(x); }
-  void acceptStep(const VecX& x, const VecX& v) override { base_.acceptStep(x, v); }
+  void acceptStep(const VecX& x, VecX& v) override { base_.acceptStep(x, v); }
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;
 
