@@ -116,6 +116,7 @@ class BackwardEulerNewton : public ImplicitEulerBase {
     x_k_ = x + h * vk;
     const ForceReport rep = model.computeForces(x_k_, vk, fk_, nullptr);
     out->degenerate_terms = std::max(out->degenerate_terms, rep.degenerate_terms);
+    out->torn_segments = std::max(out->torn_segments, rep.torn_segments);
     model.multiplyMass(x, vk - v, mv_);
     free_residual_ = mv_ - h * fk_;
     filter(free_residual_);

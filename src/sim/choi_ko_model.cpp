@@ -378,7 +378,7 @@ Real ChoiKoClothModel::maxEdgeStretch(const VecX& x) const {
   return worst;
 }
 
-void ChoiKoClothModel::acceptStep(const VecX& x, const VecX& /*v*/) {
+void ChoiKoClothModel::acceptStep(const VecX& x, VecX& /*v*/) {
   if (!options_.hysteresis.enabled()) return;
   const Index nb = static_cast<Index>(bends_.size());
 #pragma omp parallel for schedule(static)

@@ -177,6 +177,7 @@ bool DrapeSimulation::stepOnce() {
     result_.assembly_ms += out.assembly_ms;
     result_.solve_ms += out.solve_ms;
     result_.degenerate_terms = std::max(result_.degenerate_terms, out.degenerate_terms);
+    result_.torn_segments = std::max(result_.torn_segments, out.torn_segments);
     std::string why;
     if (out.ok && checkDivergence(x_new_, v_new_, &why)) {
       out.ok = false;

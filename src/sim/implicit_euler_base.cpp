@@ -16,6 +16,7 @@ bool ImplicitEulerBase::assembleSystem(ClothModel& model, const VecX& x, const V
   }
   const ForceReport rep = model.computeForces(x, v, f_, &jac_);
   out->degenerate_terms = std::max(out->degenerate_terms, rep.degenerate_terms);
+  out->torn_segments = std::max(out->torn_segments, rep.torn_segments);
   if (!f_.allFinite()) {
     out->ok = false;
     out->failure = "non-finite force";

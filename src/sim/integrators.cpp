@@ -525,6 +525,7 @@ class RungeKutta4 : public Integrator {
       }
       const ForceReport rep = model.computeForces(xs, vs, force_, nullptr);
       out.degenerate_terms += rep.degenerate_terms;
+      out.torn_segments = std::max(out.torn_segments, rep.torn_segments);
       // a = M^-1 f on the free nodes; pinned nodes do not accelerate (their offsets are piecewise linear).
       if (!model.solveMass(xs, force_, mask, a)) mass_ok = false;
     };

@@ -65,7 +65,12 @@ void YarnWovenModel::buildCrossingTerms(const std::vector<std::array<Index, 4>>&
         contacts_.push_back(p);
       }
   slide_anchor_ = VecX::Zero(static_cast<Eigen::Index>(sheet_.dofCount()));
-  for (std::size_t node = 0; node < g.crossings.size(); ++node)
+  collectSlidingDofs();
+}
+
+void YarnWovenModel::collectSlidingDofs() {
+  sliding_dofs_.clear();
+  for (std::size_t node = 0; node < sheet_.grid.crossings.size(); ++node)
     for (std::size_t off : {3, 4})
       if (!held_[kB * node + off]) sliding_dofs_.push_back({static_cast<Eigen::Index>(kB * node + off), node});
 }
@@ -97,6 +102,7 @@ Real YarnWovenModel::crossingEnergy(const VecX& q) const {
   Real e = 0;
   for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
     const ShearPair& p = shear_pairs_[k];
+    if (p.torn) continue;
     const Real F_n = pairCompression(p);
     const yarn::ShearParameters s = shearParameters(p, F_n);
     const yarn::CrossingVector x = crossingStencil(q, p.node);
@@ -107,8 +113,9 @@ Real YarnWovenModel::crossingEnergy(const VecX& q) const {
     }
   }
   for (const ContactPair& p : contacts_)
-    e += yarn::parallelContactEnergy(q[static_cast<Eigen::Index>(p.dof[0])], q[static_cast<Eigen::Index>(p.dof[1])], k_c_,
-                                     spacing_, p.distance);
+    if (!p.torn)
+      e += yarn::parallelContactEnergy(q[static_cast<Eigen::Index>(p.dof[0])], q[static_cast<Eigen::Index>(p.dof[1])], k_c_,
+                                       spacing_, p.distance);
   if (options_.crossing.friction && !compression_.empty())
     for (const SlidingDof& s : sliding_dofs_) {
       const Real limit = fabric_.sliding_friction * compression_[s.crossing];
@@ -141,6 +148,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
       conservative || friction ? shear_pairs_.size() : 0,
       [&](std::size_t k, PairTerms& t) {
         const ShearPair& p = shear_pairs_[k];
+        if (p.torn) return;
         const Real F_n = pairCompression(p);
         const yarn::ShearParameters s = shearParameters(p, F_n);
         const yarn::CrossingVector x = crossingStencil(q, p.node);
@@ -150,6 +158,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
       },
       [&](std::size_t k, const PairTerms& t) {
         const ShearPair& p = shear_pairs_[k];
+        if (p.torn) return;
         if (with_f && t.gradient.allFinite())
           for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) -= t.gradient.segment<3>(3 * a);
         if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale);
@@ -161,7 +170,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
   for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
     const ContactPair& p = contacts_[k];
     const Real u0 = q[static_cast<Eigen::Index>(p.dof[0])], u1 = q[static_cast<Eigen::Index>(p.dof[1])];
-    if (u1 - u0 >= p.distance) continue;
+    if (p.torn || u1 - u0 >= p.distance) continue;
     const yarn::ContactVector g = yarn::parallelContactGradient(u0, u1, k_c_, spacing_, p.distance);
     if (f)
       for (int i = 0; i < 2; ++i) (*f)[static_cast<Eigen::Index>(p.dof[static_cast<std::size_t>(i)])] -= g[i];
@@ -186,7 +195,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
   }
 }
 
-void YarnWovenModel::acceptStep(const VecX& x, const VecX& /*v*/) {
+void YarnWovenModel::acceptStep(const VecX& x, VecX& v) {
   const VecX q = kernelCoordinates(x);
   if (options_.crossing.friction && !compression_.empty()) {
     for (const SlidingDof& s : sliding_dofs_)
@@ -195,10 +204,11 @@ void YarnWovenModel::acceptStep(const VecX& x, const VecX& /*v*/) {
     for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
       const ShearPair& p = shear_pairs_[k];
       const Real phi = yarn::crossingAngle(crossingStencil(q, p.node));
-      if (std::isfinite(phi))
+      if (!p.torn && std::isfinite(phi))
         angle_anchor_[k] = yarn::shearFrictionAnchor(phi, angle_anchor_[k], k_fphi_, mu_phi_, pairCompression(p));
     }
   }
+  tearOverloadedSegments(q, v);
   updateCompression(q);
 }
 
@@ -212,21 +222,30 @@ std::vector<Real> YarnWovenModel::internalState() const {
   if (compression_.empty()) s.insert(s.end(), c, 0.0);
   else s.insert(s.end(), compression_.begin(), compression_.end());
   s.push_back(compression_.empty() ? 0 : 1);
+  if (!tears_.torn.empty()) {
+    s.insert(s.end(), tears_.torn.begin(), tears_.torn.end());
+    s.push_back(static_cast<Real>(tears_.torn.size()));
+  }
   return s;
 }
 
 bool YarnWovenModel::setInternalState(const std::vector<Real>& state) {
   const std::size_t n = sheet_.nodeCount(), c = sheet_.grid.crossings.size();
-  if (state.size() != 2 * n + angle_anchor_.size() + c + 1) return false;
+  const std::size_t base = 2 * n + angle_anchor_.size() + c + 1;
+  std::vector<std::size_t> torn;
+  if (state.size() < base || !readTornSegments(state, base, &torn)) return false;
   for (Real r : state)
     if (!std::isfinite(r)) return false;
-  if (state.back() != 0 && state.back() != 1) return false;
+  const Real evaluated = state[base - 1];
+  if (evaluated != 0 && evaluated != 1) return false;
   std::size_t k = 0;
   for (std::size_t node = 0; node < n; ++node)
     for (std::size_t off : {3, 4}) slide_anchor_[static_cast<Eigen::Index>(kB * node + off)] = state[k++];
   for (Real& a : angle_anchor_) a = state[k++];
-  if (state.back() == 1) compression_.assign(state.begin() + static_cast<std::ptrdiff_t>(k), state.begin() + static_cast<std::ptrdiff_t>(k + c));
+  if (evaluated == 1) compression_.assign(state.begin() + static_cast<std::ptrdiff_t>(k), state.begin() + static_cast<std::ptrdiff_t>(k + c));
   else compression_.clear();
+  tears_.torn = std::move(torn);
+  applyTornSegments();
   return true;
 }
 

@@ -105,6 +105,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
     : sheet_(std::move(sheet)), fabric_(std::move(fabric)), options_(std::move(options)),
       gravity_(0, 0, options_.gravity ? -kGravity : 0) {
   validateWovenFabric(fabric_);
+  validateTearTension(options_.tear_tension_n);
   const std::size_t n = sheet_.nodeCount(), dofs = sheet_.dofCount();
   if (n == 0) throw SimError("yarn_woven: the yarn sheet has no node");
   held_.assign(dofs, 0);
@@ -188,20 +189,22 @@ void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, Bl
   computeInParallelApplyInOrder<yarn::SegmentMatrix>(
       segments_.size(),
       [&](std::size_t k, yarn::SegmentMatrix& h) {
+        if (segments_[k].torn) return;
         const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
         h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
       },
       [&](std::size_t k, const yarn::SegmentMatrix& h) {
-        if (h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a);
+        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a);
       });
   computeInParallelApplyInOrder<yarn::BendMatrix>(
       bends_.size(),
       [&](std::size_t k, yarn::BendMatrix& h) {
+        if (bends_[k].torn) return;
         const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
         h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
       },
       [&](std::size_t k, const yarn::BendMatrix& h) {
-        if (h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a);
+        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a);
       });
 }
 
@@ -218,6 +221,7 @@ void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
 
 ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
   ForceReport report;
+  report.torn_segments = static_cast<Index>(tornSegmentCount());
   const VecX q = kernelCoordinates(x);
   VecX grad = VecX::Zero(q.size());
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
@@ -226,7 +230,8 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
       segments_.size(),
       [&](std::size_t k, yarn::SegmentVector& g) {
         const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
-        g = yarn::stretchGradient(e, k_s);
+        // A torn segment keeps only its gravity: the weight of its two halves (yarn_woven_tearing.cpp).
+        g = segments_[k].torn ? yarn::SegmentVector(yarn::SegmentVector::Zero()) : yarn::stretchGradient(e, k_s);
         if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
         if (!(e[7] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
       },
@@ -237,11 +242,13 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   computeInParallelApplyInOrder<yarn::BendVector>(
       bends_.size(),
       [&](std::size_t k, yarn::BendVector& g) {
+        if (bends_[k].torn) return;
         const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
         g = yarn::bendGradient(e, k_b);
         if (!(e[11] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
       },
       [&](std::size_t k, const yarn::BendVector& g) {
+        if (bends_[k].torn) return;
         if (g.allFinite()) yarn_stencil::scatterAdd<3>(g, dofsOf<3>(bends_[k]), &grad);
         else ++report.degenerate_terms;
       });
@@ -299,7 +306,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
 
 Real YarnWovenModel::potentialEnergy(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
-  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + crossingEnergy(q);
+  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + tornSegmentWeightEnergy(q) + crossingEnergy(q);
 }
 
 Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {
@@ -315,6 +322,7 @@ Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
   Real worst = 0;
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
     const Real ratio = (e.segment<3>(4) - e.segment<3>(0)).norm() / (e[7] - e[3]);
     worst = std::max(worst, std::isfinite(ratio) && ratio >= 0 ? ratio : std::numeric_limits<Real>::infinity());
@@ -340,9 +348,13 @@ void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix&
   computeInParallelApplyInOrder<yarn::SegmentMatrix>(
       segments_.size(),
       [&](std::size_t k, yarn::SegmentMatrix& m) {
+        if (segments_[k].torn) return;
         m = yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k])), fabric_.linear_density_kg_per_m);
       },
-      [&](std::size_t k, const yarn::SegmentMatrix& m) { scatterBlocks<2>(m, segments_[k], scale, a); });
+      [&](std::size_t k, const yarn::SegmentMatrix& m) {
+        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a);
+      });
+  addTornSegmentMass(q, scale, a);
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];
 }
 
@@ -350,6 +362,7 @@ void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const 
   const VecX q = kernelCoordinates(x);
   mv = VecX::Zero(v.size());
   for (const Stencil& s : segments_) {
+    if (s.torn) continue;
     const auto dofs = dofsOf<2>(s);
     yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
     for (int k = 0; k < 8; ++k)
@@ -359,6 +372,7 @@ void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const 
       if (held_[s.dof[static_cast<std::size_t>(k)]]) out[k] = 0;
     yarn_stencil::scatterAdd<2>(out, dofs, &mv);
   }
+  addTornSegmentMassProduct(q, v, mv);
   for (std::size_t d : sheet_.held_dofs)
     mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
 }

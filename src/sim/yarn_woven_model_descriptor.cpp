@@ -68,6 +68,7 @@ ParsedYarnOptions parseYarnOptions(const std::map<std::string, std::string>& val
   r.readReal("contact_stiffness_factor", 0, true, &c.contact_stiffness_factor);
   r.readBool("gravity", &o.model.gravity);
   r.readBool("exact_hessian", &o.model.exact_hessian);
+  r.readReal("tear_tension_n", 0, false, &o.model.tear_tension_n);
   r.finish();
   const std::string errors = wovenFabricErrors(o.model.fabric);
   if (!errors.empty()) throw ClothModelError("model yarn_woven: fabric: " + errors);
@@ -101,6 +102,7 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
   d.option_keys.emplace_back("contact_stiffness_factor", "k_c = factor k_s / L^2, > 0 (default 1)");
   d.option_keys.emplace_back("gravity", "true | false");
   d.option_keys.emplace_back("exact_hessian", "true | false: exact instead of clamped Hessians in df/dx");
+  d.option_keys.emplace_back("tear_tension_n", "tension [N] >= 0 of one real yarn at which a segment tears (default 0: off)");
   d.parse_options = [](const std::map<std::string, std::string>& v) { return std::any(parseYarnOptions(v)); };
   d.create = [](const ParticleTopology& topology, const Material& /*material*/, const std::any& options) {
     const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
@@ -124,6 +126,7 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
     f.numbers.emplace_back("model_options.jamming_gain", c.jamming_gain);
     f.numbers.emplace_back("model_options.compression_gain_per_n", c.compression_gain_per_n);
     f.numbers.emplace_back("model_options.contact_stiffness_factor", c.contact_stiffness_factor);
+    f.numbers.emplace_back("model_options.tear_tension_n", o.model.tear_tension_n);
     f.lines.push_back(std::string("hessian: ") + (o.model.exact_hessian ? "exact" : "clamped"));
     for (const FabricKey& k : kFabricKeys) f.numbers.emplace_back(std::string("model_options.") + k.key, o.model.fabric.*k.field);
     return f;

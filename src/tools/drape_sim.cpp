@@ -113,6 +113,7 @@ void writeSummary(std::ostream& os, const DrapeScene& scene, const RunResult& r,
      << "obstacles: " << (scene.spec.obstacles.planes.size() + scene.spec.obstacles.boxes.size() +
                           scene.spec.obstacles.spheres.size()) << "\n"
      << "collision_events: " << r.post_step_events << "\n"
+     << "torn_segments: " << r.torn_segments << "\n"
      << "collision_ms_per_step: " << per_step(r.post_step_ms) << "\n"
      << "assembly_ms_per_step: " << per_step(r.assembly_ms) << "\n"
      << "solve_ms_per_step: " << per_step(r.solve_ms) << "\n"

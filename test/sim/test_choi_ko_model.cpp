@@ -782,7 +782,8 @@ TEST(ChoiKoModel, FlatSheetIsFiniteAndForceFree) {
       Real mgz = 0;
       for (Index r = 0; r < topo.size(); ++r) mgz += model->massPerDof()[3 * r] * kGravity * x[3 * r + 2];
       EXPECT_NEAR(model->potentialEnergy(x), mgz, 1e-14 * std::abs(mgz));
-      model->acceptStep(x, VecX::Zero(x.size()));
+      VecX at_rest = VecX::Zero(x.size());
+      model->acceptStep(x, at_rest);
       EXPECT_TRUE(std::isfinite(model->maxEdgeStretch(x)));
       EXPECT_NEAR(model->maxEdgeStretch(x), 1.0, 1e-12);
     }
@@ -957,7 +958,8 @@ TEST(ChoiKoModel, BendSignFollowsTheGeometry) {
       for (Index r = 0; r < topo.size(); ++r) x[3 * r] *= 0.9;
       return x;
     }();
-    model->acceptStep(up, VecX::Zero(up.size()));
+    VecX at_rest = VecX::Zero(up.size());
+    model->acceptStep(up, at_rest);
     for (Index k = 0; k < static_cast<Index>(model->bendingUnits().size()); ++k) {
       if (std::abs(model->signedCurvature(k, up)) < 1e-3) continue;
       EXPECT_EQ(model->committedSign(k), 1.0);
@@ -965,7 +967,7 @@ TEST(ChoiKoModel, BendSignFollowsTheGeometry) {
         EXPECT_GT(model->signedCurvature(k, squeezed), 0);
       }
     }
-    model->acceptStep(down, VecX::Zero(up.size()));
+    model->acceptStep(down, at_rest);
     for (Index k = 0; k < static_cast<Index>(model->bendingUnits().size()); ++k) {
       if (std::abs(model->signedCurvature(k, down)) < 1e-3) continue;
       EXPECT_EQ(model->committedSign(k), -1.0);
@@ -993,7 +995,8 @@ TEST(ChoiKoModel, HysteresisStateIsCommittedOnlyInAcceptStepAndRoundTrips) {
     model->computeForces(other, VecX::Zero(bent.size()), f1, nullptr);
     EXPECT_EQ(model->internalState(), fresh);
     // A history: bend, unbend part-way, bend the other way, come back.
-    for (const VecX* x : {&bent, &less, &other, &less}) model->acceptStep(*x, VecX::Zero(x->size()));
+    VecX at_rest = VecX::Zero(bent.size());
+    for (const VecX* x : {&bent, &less, &other, &less}) model->acceptStep(*x, at_rest);
     const std::vector<Real> state = model->internalState();
     EXPECT_NE(state, fresh);
     // Hysteresis: the force at `less` now differs from the virgin one (it is reached from the other

@@ -44,7 +44,7 @@ class PulledModel : public ClothModel {
   // simulation's energy check compares kinetic + gravitational energy with the initial total).
   Real potentialEnergy(const VecX& x) const override { return inner_.potentialEnergy(x) + pullEnergy(x); }
   Real maxEdgeStretch(const VecX& x) const override { return inner_.maxEdgeStretch(x); }
-  void acceptStep(const VecX& x, const VecX& v) override { inner_.acceptStep(x, v); }
+  void acceptStep(const VecX& x, VecX& v) override { inner_.acceptStep(x, v); }
   bool hasLumpedMass() const override { return false; }
   const VecX& massPerDof() const override { return inner_.massPerDof(); }
   void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const override { inner_.addMassMatrix(x, scale, a); }

@@ -19,12 +19,12 @@ inline Eigen::VectorXd eigenvalues(const Eigen::MatrixXd& m) {
   return Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m).eigenvalues();
 }
 
-/// Central differences (step h) of a scalar function of N values.
+/// Central differences (step h) of a scalar function of N values (N = Eigen::Dynamic: of q.size()).
 template <int N>
 Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen::Matrix<Real, N, 1>&)>& f,
                                            const Eigen::Matrix<Real, N, 1>& q, Real h) {
-  Eigen::Matrix<Real, N, 1> g;
-  for (int k = 0; k < N; ++k) {
+  Eigen::Matrix<Real, N, 1> g = q;
+  for (Eigen::Index k = 0; k < q.size(); ++k) {
     Eigen::Matrix<Real, N, 1> a = q, b = q;
     a[k] += h;
     b[k] -= h;
@@ -33,12 +33,14 @@ Eigen::Matrix<Real, N, 1> numericGradientN(const std::function<Real(const Eigen:
   return g;
 }
 
-/// Central differences (step h) of a vector function of N values, column by column.
+/// Central differences (step h) of a vector function of N values, column by column (N = Eigen::Dynamic:
+/// of q.size() values).
 template <int N>
 Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Real, N, 1>(const Eigen::Matrix<Real, N, 1>&)>& f,
                                            const Eigen::Matrix<Real, N, 1>& q, Real h) {
   Eigen::Matrix<Real, N, N> J;
-  for (int k = 0; k < N; ++k) {
+  J.resize(q.size(), q.size());
+  for (Eigen::Index k = 0; k < q.size(); ++k) {
     Eigen::Matrix<Real, N, 1> a = q, b = q;
     a[k] += h;
     b[k] -= h;

@@ -107,7 +107,7 @@ class ChoiKoClothModel : public ClothModel {
   Real potentialEnergy(const VecX& x) const override;
   Real maxEdgeStretch(const VecX& x) const override;
   /// Commits the bend sign and the hysteresis state of every bending unit at the accepted x.
-  void acceptStep(const VecX& x, const VecX& v) override;
+  void acceptStep(const VecX& x, VecX& v) override;
   /// Empty without hysteresis; else a flat vector (layout in docs/choi_ko.md).
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;

@@ -43,6 +43,8 @@ struct DrawnYarn {
 struct ForceReport {
   /// Terms skipped because their geometry was degenerate (zero-length edge, non-finite input).
   Index degenerate_terms = 0;
+  /// Structural elements broken so far, by a model that tears (yarn_woven with tear_tension_n).
+  Index torn_segments = 0;
 };
 
 class ClothModel {
@@ -63,8 +65,9 @@ class ClothModel {
   virtual Real potentialEnergy(const VecX& x) const = 0;
   /// Largest ratio of current to rest length over the structural edges (divergence detection).
   virtual Real maxEdgeStretch(const VecX& x) const = 0;
-  /// Called once per accepted step; models with internal state (hysteresis) commit it here.
-  virtual void acceptStep(const VecX& /*x*/, const VecX& /*v*/) {}
+  /// Called once per accepted step; models with internal state (hysteresis) commit it here. A model
+  /// may change v: one that holds a DOF from now on (a torn yarn's cut end) sets its velocity to 0.
+  virtual void acceptStep(const VecX& /*x*/, VecX& /*v*/) {}
   /// Internal state for save/resume (empty for stateless models).
   virtual std::vector<Real> internalState() const { return {}; }
   virtual bool setInternalState(const std::vector<Real>& state) { return state.empty(); }

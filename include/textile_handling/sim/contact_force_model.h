@@ -45,7 +45,7 @@ class ContactForceModel : public ClothModel {
   Vec3 nodePosition(const VecX& x, Index node) const override { return base_.nodePosition(x, node); }
   Real maxEdgeStretch(const VecX& x) const override { return base_.maxEdgeStretch(x); }
   std::vector<DrawnYarn> drawnYarns() const override { return base_.drawnYarns(); }
-  void acceptStep(const VecX& x, const VecX& v) override { base_.acceptStep(x, v); }
+  void acceptStep(const VecX& x, VecX& v) override { base_.acceptStep(x, v); }
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;
 

@@ -74,6 +74,7 @@ struct RunResult {
   Real solve_ms = 0;              ///< total wall time in linear solves [ms] (semi_implicit)
   bool wall_cap_reached = false;  ///< the last run() stopped at settings.max_wall_time
   Index degenerate_terms = 0;     ///< max over steps
+  Index torn_segments = 0;        ///< structural elements broken (ForceReport::torn_segments), max over steps
 };
 
 /// A pass run after every accepted step (collision handling). It may change x and v; it returns the

@@ -104,6 +104,7 @@ struct StepOutcome {
   Real error_estimate = 0;    ///< local position error estimate [m] (for error-controlled steps)
   int error_order = 2;        ///< the estimate scales like h^error_order
   Index degenerate_terms = 0;
+  Index torn_segments = 0;    ///< the model's ForceReport::torn_segments (largest over the step's evaluations)
   Real assembly_ms = 0;       ///< wall time of forces, Jacobians and system assembly (semi_implicit, Newton)
   Real solve_ms = 0;          ///< wall time of the linear solves, preconditioner set-up included (semi_implicit, Newton)
 };

@@ -50,7 +50,7 @@ class AnchoredClothModel : public ClothModel {
   Vec3 nodePosition(const VecX& x, Index node) const override { return inner_.nodePosition(x, node); }
   Real maxEdgeStretch(const VecX& x) const override { return inner_.maxEdgeStretch(x); }
   std::vector<DrawnYarn> drawnYarns() const override { return inner_.drawnYarns(); }
-  void acceptStep(const VecX& x, const VecX& v) override { inner_.acceptStep(x, v); }
+  void acceptStep(const VecX& x, VecX& v) override { inner_.acceptStep(x, v); }
   std::vector<Real> internalState() const override { return inner_.internalState(); }
   bool setInternalState(const std::vector<Real>& s) override { return inner_.setInternalState(s); }
 

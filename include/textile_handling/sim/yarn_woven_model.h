@@ -53,7 +53,13 @@ struct YarnWovenOptions {
   /// Jacobian df/dx from the kernels' exact Hessians (indefinite for compressed or bent yarns) instead
   /// of their clamped, positive semi-definite ones.
   bool exact_hessian = false;
+  /// Tension of one real yarn [N] above which a yarn segment tears (a simulated bundle of n yarns at n
+  /// times it); 0 = no tearing. docs/yarn_model.md, "Tearing".
+  Real tear_tension_n = 0;
 };
+
+/// Throws SimError naming tear_tension_n unless `tension_n` is finite and >= 0.
+void validateTearTension(Real tension_n);
 
 /// The yarn grid of a particle grid: particle k is crossing k at (column, row) x spacing; every maximal
 /// run of right (+x) neighbours is a warp piece (line = row), every run of up (+y) neighbours a weft
@@ -82,11 +88,13 @@ class YarnWovenModel : public ClothModel {
   const BlockPattern& jacobianPattern() const override { return pattern_; }
   ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override;
   Real potentialEnergy(const VecX& x) const override;
-  /// Commits the friction anchors (stick/slip, notes 3.4 and 3.6) and evaluates the normal compression
-  /// F_n of the new state (eq. 9), which the next step uses as a constant (lagged, notes 9.2).
-  void acceptStep(const VecX& x, const VecX& v) override;
+  /// Commits the friction anchors (stick/slip, notes 3.4 and 3.6), tears overloaded segments (with
+  /// tear_tension_n; zeroes the velocities of the sliding DOFs a tear holds) and evaluates the normal
+  /// compression F_n of the new state (eq. 9), which the next step uses as a constant (lagged, notes 9.2).
+  void acceptStep(const VecX& x, VecX& v) override;
   /// [sliding anchors (2 per node), angle anchors (4 per crossing pair slot), F_n (per crossing), 1 if
-  /// F_n was evaluated].
+  /// F_n was evaluated], then, if any segment is torn, the torn segments' indices (ascending) and their
+  /// count. A state without torn segments is the same as before tearing existed.
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;
   /// The lagged normal compression per crossing [N] (of the simulated bundle), empty before the first
@@ -98,8 +106,9 @@ class YarnWovenModel : public ClothModel {
   bool hasLumpedMass() const override { return false; }
   /// Per node: half of its segments' mass on all five DOFs (an estimate; the mass is M(x)).
   const VecX& massPerDof() const override { return lumped_; }
-  /// scale M(x) (notes eq. 5) plus scale m_node on each held DOF's diagonal (a held DOF never moves:
-  /// its force and Jacobian are zero, the unit entry only keeps the system regular).
+  /// scale M(x) (notes eq. 5; a torn segment's mass lumped on its two nodes) plus scale m_node on each
+  /// held DOF's diagonal (a held DOF never moves: its force and Jacobian are zero, the unit entry only
+  /// keeps the system regular).
   void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const override;
   void multiplyMass(const VecX& x, const VecX& v, VecX& mv) const override;
   Real gravitationalEnergy(const VecX& x) const override;
@@ -108,11 +117,22 @@ class YarnWovenModel : public ClothModel {
   /// One polyline per warp and per weft piece of the sheet: its nodes (crossings and ends) in order.
   std::vector<DrawnYarn> drawnYarns() const override;
 
+  /// The sheet as simulated: after a tear its pieces are split at the torn segment and the cut ends'
+  /// sliding DOFs are among its held DOFs.
   const YarnSheet& sheet() const { return sheet_; }
   const WovenFabric& fabric() const { return fabric_; }
   /// The generalised coordinates of the kernels (absolute arc lengths u, v) of state x.
   VecX kernelCoordinates(const VecX& x) const { return x + arc_offset_; }
   bool isHeld(Index dof) const { return held_[static_cast<std::size_t>(dof)] != 0; }
+
+  // Tearing (yarn_woven_tearing.cpp, docs/yarn_model.md "Tearing").
+  /// Segments torn so far.
+  std::size_t tornSegmentCount() const { return tears_.torn.size(); }
+  /// The two nodes of every torn segment (by segment index, not in the order they tore).
+  std::vector<std::array<Index, 2>> tornSegmentNodes() const;
+  /// Largest tension T = k_s (l / D - 1) over the intact segments of state x [N] (of the simulated
+  /// yarn: a bundle's tension is n times a real yarn's).
+  Real maxSegmentTension(const VecX& x) const;
 
  private:
   /// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
@@ -124,6 +144,7 @@ class YarnWovenModel : public ClothModel {
     std::array<std::size_t, 12> dof{};
     std::array<Index, 9> slot{};
     int slide = 3;
+    bool torn = false;  ///< a torn segment, or a bending stencil spanning one: no longer acts
   };
   /// One (warp segment, weft segment) pair at a crossing: nodes (crossing, warp neighbour, weft
   /// neighbour), whether jamming applies, and the block slots of the 3 x 3 node pairs.
@@ -131,6 +152,7 @@ class YarnWovenModel : public ClothModel {
     std::array<Index, 3> node{};
     bool interlaced = false;
     std::array<Index, 9> slot{};
+    bool torn = false;  ///< one of its two segments is torn: no angle left, the pair no longer acts
   };
   /// A free sliding DOF of a crossing: where sliding friction acts.
   struct SlidingDof {
@@ -144,6 +166,7 @@ class YarnWovenModel : public ClothModel {
     std::array<Index, 2> node{};
     Real distance = 0;
     std::array<Index, 4> slot{};
+    bool torn = false;  ///< the segment between the two crossings is torn: no longer acts
   };
   /// Adds scale times the Hessian of stretch and bending (clamped or exact), held DOFs left out.
   void assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const;
@@ -151,6 +174,8 @@ class YarnWovenModel : public ClothModel {
   Real& diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const;
   // Crossing terms (yarn_woven_crossings.cpp).
   void buildCrossingTerms(const std::vector<std::array<Index, 4>>& around);
+  /// sliding_dofs_: every sliding DOF of a crossing that is not held.
+  void collectSlidingDofs();
   void updateCompression(const VecX& q);
   /// The lagged F_n at a pair's crossing (0 before the first evaluation).
   Real pairCompression(const ShearPair& p) const;
@@ -165,6 +190,32 @@ class YarnWovenModel : public ClothModel {
                          bool clamped, int terms, Real scale) const;
   /// Adds scale times gravity's (constant) Hessian.
   void addGravityHessian(Real scale, BlockSparseMatrix& a) const;
+  // Tearing (yarn_woven_tearing.cpp).
+  /// The torn set and what it needs to be re-derived: the laid sheet's pieces and held DOFs, kept from
+  /// the first change of the sheet on.
+  struct TearRecord {
+    std::vector<std::size_t> torn;  ///< indices into segments_, ascending
+    bool intact_saved = false;
+    std::vector<YarnPiece> intact_pieces;
+    std::vector<std::size_t> intact_held;
+  };
+  Real segmentTension(const VecX& q, const Stencil& s) const;
+  /// The segments to tear after a step at q: in every run of intact segments along a yarn, the one
+  /// under the largest tension if that is above the threshold.
+  std::vector<std::size_t> overloadedSegments(const VecX& q) const;
+  /// Tears overloaded segments (acceptStep) and zeroes the velocities of the sliding DOFs it holds.
+  void tearOverloadedSegments(const VecX& q, VecX& v);
+  /// Re-derives all that the torn set decides: stencil and crossing-term flags, the sheet's split
+  /// pieces and held DOFs, held_ and the free sliding DOFs.
+  void applyTornSegments();
+  /// Reads the torn-segment suffix of an internal state after its first `base` values (empty suffix:
+  /// none torn). False if malformed.
+  bool readTornSegments(const std::vector<Real>& state, std::size_t base, std::vector<std::size_t>* torn) const;
+  /// A torn segment's two halves: rho D / 2 on each node's position (lumped), at kernel coordinates q.
+  void addTornSegmentMass(const VecX& q, Real scale, BlockSparseMatrix& a) const;
+  void addTornSegmentMassProduct(const VecX& q, const VecX& v, VecX& mv) const;
+  /// The torn segments' weight (their gravity terms, whose arc lengths no longer move) [J].
+  Real tornSegmentWeightEnergy(const VecX& q) const;
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
@@ -189,6 +240,7 @@ class YarnWovenModel : public ClothModel {
   std::vector<Real> compression_;      ///< F_n per crossing, lagged
   VecX slide_anchor_;                  ///< per DOF (sliding DOFs of crossings used), as displacements
   std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
+  TearRecord tears_;
   BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
   VecX damping_;                 // K v and M v of the damping force, reused
 };
