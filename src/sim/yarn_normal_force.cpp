@@ -123,7 +123,8 @@ CrossingCompression crossingCompression(const YarnSheet& sheet, const WovenFabri
   out.weft_push.assign(crossings, 0);
   const Real R = fabric.yarn_radius_m, k_s = fabric.stretchStiffness(), k_b = fabric.bendingStiffness();
   for (const YarnPiece& piece : sheet.grid.pieces)
-    addPieceNormalForces(sheet, q, piece, N, out.normal, R, k_s, k_b, piece.warp ? &out.warp_push : &out.weft_push);
+    if (!piece.seam)  // a seam passes through no crossing
+      addPieceNormalForces(sheet, q, piece, N, out.normal, R, k_s, k_b, piece.warp ? &out.warp_push : &out.weft_push);
   out.force.resize(crossings);
   for (std::size_t c = 0; c < crossings; ++c) {
     out.weft_push[c] = -out.weft_push[c];  // -n . F(v)

@@ -3,9 +3,11 @@
 
 #include <algorithm>
 #include <array>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/yarn_kernels.h"
 #include "yarn_stencils.h"
 
@@ -43,9 +45,34 @@ Eigen::SparseMatrix<Real> sparseFrom(const YarnSheet& sheet, const std::vector<E
   return M;
 }
 
+// Throws SimError unless every piece's arc-length coordinates are its own: a seam runs through end
+// nodes only, with a slot (u or v) per node, and no node's u or v serves two pieces.
+void checkPieceSlots(const YarnGrid& grid) {
+  std::vector<std::size_t> owner(kYarnDofsPerNode * grid.nodeCount(), grid.pieces.size());
+  for (std::size_t i = 0; i < grid.pieces.size(); ++i) {
+    const YarnPiece& p = grid.pieces[i];
+    const std::string name = "yarn sheet: piece " + std::to_string(i);
+    if (p.nodes.size() != p.arc_length_m.size()) throw SimError(name + " has not one arc length per node");
+    if (p.seam && p.slide_offsets.size() != p.nodes.size()) throw SimError(name + " (a seam) has not one slide offset per node");
+    for (std::size_t k = 0; k < p.nodes.size(); ++k) {
+      if (p.nodes[k] >= grid.nodeCount()) throw SimError(name + " names node " + std::to_string(p.nodes[k]) + ", beyond the grid");
+      if (p.seam && !grid.isEnd(p.nodes[k]))
+        throw SimError(name + " (a seam) runs through crossing " + std::to_string(p.nodes[k]) + "; seams join yarn ends only");
+      const int off = p.slideOffset(k);
+      if (off != 3 && off != 4) throw SimError(name + " has slide offset " + std::to_string(off) + " (3 or 4)");
+      std::size_t& o = owner[kYarnDofsPerNode * p.nodes[k] + static_cast<std::size_t>(off)];
+      if (o != grid.pieces.size())
+        throw SimError(name + " uses the " + (off == 3 ? "u" : "v") + " of node " + std::to_string(p.nodes[k]) +
+                       ", which is piece " + std::to_string(o) + "'s");
+      o = i;
+    }
+  }
+}
+
 }  // namespace
 
 YarnSheet buildYarnSheet(YarnGrid grid) {
+  checkPieceSlots(grid);
   YarnSheet s;
   s.grid = std::move(grid);
   s.rest = VecX::Zero(static_cast<Eigen::Index>(s.dofCount()));
@@ -53,7 +80,13 @@ YarnSheet buildYarnSheet(YarnGrid grid) {
     const Vec2 p = s.grid.nodePosition(n);
     s.rest.segment<kYarnDofsPerNode>(kYarnDofsPerNode * n) << p.x(), p.y(), 0, p.x(), p.y();
   }
-  // An end's both sliding coordinates are held: its arc length is the yarn's end, the other unused.
+  // A seam's arc length (distance along its edge) sits in the slot its end node's own yarn leaves unused.
+  for (const YarnPiece& p : s.grid.pieces)
+    if (p.seam)
+      for (std::size_t k = 0; k < p.nodes.size(); ++k)
+        s.rest[static_cast<Eigen::Index>(kYarnDofsPerNode * p.nodes[k] + static_cast<std::size_t>(p.slideOffset(k)))] = p.arc_length_m[k];
+  // An end's both sliding coordinates are held: its arc length is the yarn's end, the other unused or
+  // a seam's arc length (sewn: the seam does not slide through the end).
   for (std::size_t n = s.grid.crossings.size(); n < s.grid.nodeCount(); ++n) {
     s.held_dofs.push_back(kYarnDofsPerNode * n + 3);
     s.held_dofs.push_back(kYarnDofsPerNode * n + 4);
@@ -63,7 +96,7 @@ YarnSheet buildYarnSheet(YarnGrid grid) {
   // into yarn that is not simulated.
   for (const YarnPiece& p : s.grid.pieces)
     for (std::size_t k : {std::size_t{0}, p.nodes.size() - 1})
-      if (!s.grid.isEnd(p.nodes[k])) s.held_dofs.push_back(kYarnDofsPerNode * p.nodes[k] + (p.warp ? 3 : 4));
+      if (!s.grid.isEnd(p.nodes[k])) s.held_dofs.push_back(kYarnDofsPerNode * p.nodes[k] + static_cast<std::size_t>(p.slideOffset(k)));
   std::sort(s.held_dofs.begin(), s.held_dofs.end());
   s.held_dofs.erase(std::unique(s.held_dofs.begin(), s.held_dofs.end()), s.held_dofs.end());
   return s;

@@ -2,8 +2,9 @@
 // assembly (yarn_sheet.cpp) and the yarn_woven model (yarn_woven_model.cpp).
 //
 // A kernel over n nodes of one yarn piece sees 4 n coordinates: per node its position and its yarn's
-// sliding coordinate, u (node offset 3) for a warp, v (4) for a weft (yarn_kernels.h: (x0, u0, x1, u1)
-// for a segment, (x2, u2, x0, u0, x1, u1) for a bending stencil).
+// sliding coordinate, u (node offset 3) for a warp, v (4) for a weft, and for a seam the per-node slot
+// holding its arc length (YarnPiece::slideOffset) (yarn_kernels.h: (x0, u0, x1, u1) for a segment,
+// (x2, u2, x0, u0, x1, u1) for a bending stencil).
 #pragma once
 
 #include <array>
@@ -24,9 +25,9 @@ template <int Nodes>
 Dofs<Nodes> dofsOf(const YarnPiece& p, std::size_t first) {
   Dofs<Nodes> d;
   for (int n = 0; n < Nodes; ++n) {
-    const std::size_t base = kYarnDofsPerNode * p.nodes[first + static_cast<std::size_t>(n)];
+    const std::size_t k = first + static_cast<std::size_t>(n), base = kYarnDofsPerNode * p.nodes[k];
     for (int c = 0; c < 3; ++c) d[4 * n + c] = base + static_cast<std::size_t>(c);
-    d[4 * n + 3] = base + (p.warp ? 3 : 4);
+    d[4 * n + 3] = base + static_cast<std::size_t>(p.slideOffset(k));
   }
   return d;
 }

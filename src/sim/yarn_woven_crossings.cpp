@@ -53,7 +53,7 @@ void YarnWovenModel::buildCrossingTerms(const std::vector<std::array<Index, 4>>&
   angle_anchor_.assign(shear_pairs_.size(), kRightAngle);
   if (c.contact)
     for (const YarnPiece& piece : g.pieces)
-      for (std::size_t k = 0; k + 1 < piece.nodes.size(); ++k) {
+      for (std::size_t k = 0; !piece.seam && k + 1 < piece.nodes.size(); ++k) {  // a seam is sewn: no contact
         const Index a = static_cast<Index>(piece.nodes[k]), b = static_cast<Index>(piece.nodes[k + 1]);
         if (!isCrossing(a) || !isCrossing(b)) continue;
         ContactPair p;

@@ -120,7 +120,6 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
   auto make = [&](const YarnPiece& p, std::size_t first, int nodes) {
     Stencil s;
     s.nodes = nodes;
-    s.slide = p.warp ? 3 : 4;
     for (int k = 0; k < nodes; ++k) s.node[static_cast<std::size_t>(k)] = static_cast<Index>(p.nodes[first + static_cast<std::size_t>(k)]);
     if (nodes == 2) {
       const auto d = yarn_stencil::dofsOf<2>(p, first);
@@ -137,6 +136,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
         segments_.push_back(make(p, k, 2));
         const Index a = static_cast<Index>(p.nodes[k]), b = static_cast<Index>(p.nodes[k + 1]);
         couplings.emplace_back(a, b);
+        if (p.seam) return;  // a seam has no crossing terms, so no shear pairs through its neighbours
         const int o = p.warp ? 0 : 2;
         around[static_cast<std::size_t>(a)][o + 1] = b;
         around[static_cast<std::size_t>(b)][o] = a;
@@ -175,10 +175,10 @@ template <int Nodes, class Matrix>
 void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a) const {
   for (int r = 0; r < 4 * Nodes; ++r) {
     if (held_[s.dof[static_cast<std::size_t>(r)]]) continue;
-    const int lr = r % 4 < 3 ? r % 4 : s.slide;
+    const int lr = static_cast<int>(s.dof[static_cast<std::size_t>(r)] % kB);  // node-local coordinate
     for (int c = 0; c < 4 * Nodes; ++c) {
       if (m(r, c) == 0 || held_[s.dof[static_cast<std::size_t>(c)]]) continue;
-      const int lc = c % 4 < 3 ? c % 4 : s.slide;
+      const int lc = static_cast<int>(s.dof[static_cast<std::size_t>(c)] % kB);
       a.block(s.slot[static_cast<std::size_t>((r / 4) * Nodes + c / 4)])[lr * kB + lc] += scale * m(r, c);
     }
   }

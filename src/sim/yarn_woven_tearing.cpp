@@ -58,6 +58,8 @@ std::vector<YarnPiece> splitPieces(const std::vector<YarnPiece>& intact, const C
     run.line = p.line;
     run.nodes.assign(p.nodes.begin() + from, p.nodes.begin() + to);
     run.arc_length_m.assign(p.arc_length_m.begin() + from, p.arc_length_m.begin() + to);
+    run.seam = p.seam;
+    if (p.seam) run.slide_offsets.assign(p.slide_offsets.begin() + from, p.slide_offsets.begin() + to);
     out.push_back(std::move(run));
   };
   for (const YarnPiece& p : intact) {
@@ -141,8 +143,7 @@ void YarnWovenModel::tearOverloadedSegments(const VecX& q, VecX& v) {
   applyTornSegments();
   // A cut end is held from now on: it must not keep the sliding speed it had.
   for (std::size_t k : tear)
-    for (Index node : {segments_[k].node[0], segments_[k].node[1]})
-      v[static_cast<Eigen::Index>(kB * node + segments_[k].slide)] = 0;
+    for (std::size_t d : {segments_[k].dof[3], segments_[k].dof[7]}) v[static_cast<Eigen::Index>(d)] = 0;
 }
 
 void YarnWovenModel::applyTornSegments() {
@@ -159,7 +160,7 @@ void YarnWovenModel::applyTornSegments() {
     Stencil& s = segments_[k];
     s.torn = true;
     cut.add(s.node[0], s.node[1]);
-    for (Index node : {s.node[0], s.node[1]}) held.push_back(static_cast<std::size_t>(kB * node + s.slide));
+    for (std::size_t d : {s.dof[3], s.dof[7]}) held.push_back(d);  // the segment's sliding DOF at each node
   }
   cut.sort();
   for (Stencil& s : bends_) s.torn = cut.contains(s.node[0], s.node[1]) || cut.contains(s.node[1], s.node[2]);

@@ -21,6 +21,8 @@ constexpr int kYarnDofsPerNode = 5;
 /// yarn is fixed at the yarn's end (notes 2.1) and its other sliding coordinate is unused; both are held
 /// (`held_dofs`), so an end is a 3-DOF node padded to 5 (notes 9.6). A piece that ends at a crossing
 /// (no end node) holds its sliding coordinate at that crossing, so no yarn material leaves the sheet.
+/// A seam piece's arc length at an end is the end's otherwise unused coordinate (YarnPiece::slideOffset),
+/// held like it: the seam is sewn, it does not slide through its nodes.
 struct YarnSheet {
   YarnGrid grid;
   VecX rest;                          ///< 5N: the flat sheet at z = 0 in the outline frame
@@ -30,7 +32,9 @@ struct YarnSheet {
   std::size_t dofCount() const { return kYarnDofsPerNode * nodeCount(); }
 };
 
-/// The sheet of `grid`: flat rest state and held sliding DOFs.
+/// The sheet of `grid`: flat rest state (a seam's slot holding its arc length) and held sliding DOFs.
+/// Throws SimError naming the piece if a seam runs through a crossing or lacks a slide offset per node,
+/// a node index is out of range, or one node's u or v is the arc length of two pieces.
 YarnSheet buildYarnSheet(YarnGrid grid);
 
 /// The sheet's conservative terms at state q (5N): stretch (k_s = Y pi R^2) and gravity on every

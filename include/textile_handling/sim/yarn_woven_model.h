@@ -135,15 +135,14 @@ class YarnWovenModel : public ClothModel {
   Real maxSegmentTension(const VecX& x) const;
 
  private:
-  /// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
-  /// slots of every node pair (row-major, n x n), and the node-local offset of the sliding coordinate
-  /// it uses (3 = u for a warp, 4 = v for a weft).
+  /// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates (a DOF
+  /// modulo 5 is its node-local coordinate: the sliding one may differ per node on a seam), and the
+  /// block slots of every node pair (row-major, n x n).
   struct Stencil {
     int nodes = 0;
     std::array<Index, 3> node{};
     std::array<std::size_t, 12> dof{};
     std::array<Index, 9> slot{};
-    int slide = 3;
     bool torn = false;  ///< a torn segment, or a bending stencil spanning one: no longer acts
   };
   /// One (warp segment, weft segment) pair at a crossing: nodes (crossing, warp neighbour, weft
