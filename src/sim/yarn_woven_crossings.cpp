@@ -4,6 +4,7 @@
 // friction anchors. Kernels: yarn_crossing_kernels.h; docs/yarn_model.md, "Crossing terms in the model".
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_normal_force.h"
@@ -200,6 +201,7 @@ void YarnWovenModel::acceptStep(const VecX& x, const VecX& /*v*/) {
     }
   }
   updateCompression(q);
+  acceptSelfContacts(x);
 }
 
 std::vector<Real> YarnWovenModel::internalState() const {
@@ -212,21 +214,27 @@ std::vector<Real> YarnWovenModel::internalState() const {
   if (compression_.empty()) s.insert(s.end(), c, 0.0);
   else s.insert(s.end(), compression_.begin(), compression_.end());
   s.push_back(compression_.empty() ? 0 : 1);
+  appendSelfContactState(s);
   return s;
 }
 
 bool YarnWovenModel::setInternalState(const std::vector<Real>& state) {
   const std::size_t n = sheet_.nodeCount(), c = sheet_.grid.crossings.size();
-  if (state.size() != 2 * n + angle_anchor_.size() + c + 1) return false;
+  const std::size_t base = 2 * n + angle_anchor_.size() + c + 1;  // then the self-contacts
+  std::vector<yarn::PenaltyContact> contacts;
+  bool detected = false;
+  if (state.size() < base || !readSelfContactState(state, base, &contacts, &detected)) return false;
   for (Real r : state)
     if (!std::isfinite(r)) return false;
-  if (state.back() != 0 && state.back() != 1) return false;
+  if (state[base - 1] != 0 && state[base - 1] != 1) return false;
   std::size_t k = 0;
   for (std::size_t node = 0; node < n; ++node)
     for (std::size_t off : {3, 4}) slide_anchor_[static_cast<Eigen::Index>(kB * node + off)] = state[k++];
   for (Real& a : angle_anchor_) a = state[k++];
-  if (state.back() == 1) compression_.assign(state.begin() + static_cast<std::ptrdiff_t>(k), state.begin() + static_cast<std::ptrdiff_t>(k + c));
+  if (state[base - 1] == 1) compression_.assign(state.begin() + static_cast<std::ptrdiff_t>(k), state.begin() + static_cast<std::ptrdiff_t>(k + c));
   else compression_.clear();
+  self_contacts_ = std::move(contacts);
+  self_contacts_detected_ = detected;
   return true;
 }
 

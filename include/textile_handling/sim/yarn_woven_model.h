@@ -20,6 +20,7 @@
 #include "textile_handling/sim/woven_fabric.h"
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_grid.h"
+#include "textile_handling/sim/yarn_penalty_contact.h"
 #include "textile_handling/sim/yarn_sheet.h"
 
 namespace textile_handling {
@@ -53,6 +54,7 @@ struct YarnWovenOptions {
   /// Jacobian df/dx from the kernels' exact Hessians (indefinite for compressed or bent yarns) instead
   /// of their clamped, positive semi-definite ones.
   bool exact_hessian = false;
+  YarnSelfContactOptions self_contact;  ///< penalty self-contact on extruded triangles
 };
 
 /// The yarn grid of a particle grid: particle k is crossing k at (column, row) x spacing; every maximal
@@ -86,7 +88,8 @@ class YarnWovenModel : public ClothModel {
   /// F_n of the new state (eq. 9), which the next step uses as a constant (lagged, notes 9.2).
   void acceptStep(const VecX& x, const VecX& v) override;
   /// [sliding anchors (2 per node), angle anchors (4 per crossing pair slot), F_n (per crossing), 1 if
-  /// F_n was evaluated].
+  /// F_n was evaluated], and with self_contact [1 if detected, count, per contact: node, triangle, side,
+  /// 3 anchor weights] (the sides and anchors carry history: they cannot be recomputed from x).
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;
   /// The lagged normal compression per crossing [N] (of the simulated bundle), empty before the first
@@ -113,6 +116,9 @@ class YarnWovenModel : public ClothModel {
   /// The generalised coordinates of the kernels (absolute arc lengths u, v) of state x.
   VecX kernelCoordinates(const VecX& x) const { return x + arc_offset_; }
   bool isHeld(Index dof) const { return held_[static_cast<std::size_t>(dof)] != 0; }
+  /// The penalty self-contacts of the last accepted step (yarn_woven_self_contact.cpp) and their triangles.
+  const std::vector<yarn::PenaltyContact>& selfContacts() const { return self_contacts_; }
+  const yarn::YarnTriangles& selfContactTriangles() const { return triangles_; }
 
  private:
   /// One kernel's stencil: its nodes along one yarn piece, the DOFs of its 4 n coordinates, the block
@@ -165,6 +171,17 @@ class YarnWovenModel : public ClothModel {
                          bool clamped, int terms, Real scale) const;
   /// Adds scale times gravity's (constant) Hessian.
   void addGravityHessian(Real scale, BlockSparseMatrix& a) const;
+  // Penalty self-contact (yarn_woven_self_contact.cpp).
+  void buildSelfContact();
+  void detectSelfContacts(const VecX& x);
+  /// Adds the contacts' forces into f and their diagonal Jacobian blocks into dfdx and dfdv (each if not null).
+  void addSelfContactForces(const VecX& x, const VecX& v, VecX* f, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv) const;
+  Real selfContactEnergy(const VecX& x) const;
+  void acceptSelfContacts(const VecX& x);
+  void appendSelfContactState(std::vector<Real>& s) const;
+  /// Reads the tail of an internal state from `from`; false if malformed (nothing changed).
+  bool readSelfContactState(const std::vector<Real>& s, std::size_t from, std::vector<yarn::PenaltyContact>* contacts,
+                            bool* detected) const;
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
@@ -191,6 +208,11 @@ class YarnWovenModel : public ClothModel {
   std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
   BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
   VecX damping_;                 // K v and M v of the damping force, reused
+  // Penalty self-contact: triangles, constants, the contacts of the last accepted step.
+  yarn::YarnTriangles triangles_;
+  std::vector<yarn::PenaltyContact> self_contacts_;
+  bool self_contacts_detected_ = false;
+  Real gamma_ = 0, k_p_ = 0, d_p_ = 0, mu_p_ = 0;
 };
 
 }  // namespace textile_handling
