@@ -34,7 +34,7 @@ struct YarnSelfContactOptions {
   /// gamma = factor R (`self_contact_thickness_factor`; the notes' examples use 4R).
   Real thickness_factor = 4;
   /// k_p = factor k_s / L (`self_contact_stiffness_factor`): a penetration resisted like the stretch of
-  /// one yarn segment, the stiffest spring the sheet already has, so the stable step barely changes.
+  /// one yarn segment, as stiff as the stiffest spring the sheet already has.
   Real stiffness_factor = 1;
   /// d_p = factor 2 sqrt(k_p m), m the mean crossing mass (`self_contact_damping`): the ratio to the
   /// critical damping of a crossing on the penalty spring.
