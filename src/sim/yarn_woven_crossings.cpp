@@ -4,6 +4,7 @@
 // friction anchors. Kernels: yarn_crossing_kernels.h; docs/yarn_model.md, "Crossing terms in the model".
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_normal_force.h"
@@ -210,6 +211,7 @@ void YarnWovenModel::acceptStep(const VecX& x, VecX& v) {
   }
   tearOverloadedSegments(q, v);
   updateCompression(q);
+  acceptSelfContacts(x);
 }
 
 std::vector<Real> YarnWovenModel::internalState() const {
@@ -222,7 +224,8 @@ std::vector<Real> YarnWovenModel::internalState() const {
   if (compression_.empty()) s.insert(s.end(), c, 0.0);
   else s.insert(s.end(), compression_.begin(), compression_.end());
   s.push_back(compression_.empty() ? 0 : 1);
-  if (!tears_.torn.empty()) {
+  appendSelfContactState(s);
+  if (!tears_.torn.empty()) {  // last: the torn list ends with its count
     s.insert(s.end(), tears_.torn.begin(), tears_.torn.end());
     s.push_back(static_cast<Real>(tears_.torn.size()));
   }
@@ -231,9 +234,14 @@ std::vector<Real> YarnWovenModel::internalState() const {
 
 bool YarnWovenModel::setInternalState(const std::vector<Real>& state) {
   const std::size_t n = sheet_.nodeCount(), c = sheet_.grid.crossings.size();
-  const std::size_t base = 2 * n + angle_anchor_.size() + c + 1;
+  const std::size_t base = 2 * n + angle_anchor_.size() + c + 1;  // then the self-contacts, then the torn segments
+  std::vector<yarn::PenaltyContact> contacts;
+  bool detected = false;
+  std::size_t torn_from = base;
   std::vector<std::size_t> torn;
-  if (state.size() < base || !readTornSegments(state, base, &torn)) return false;
+  if (state.size() < base || !readSelfContactState(state, base, &contacts, &detected, &torn_from) ||
+      !readTornSegments(state, torn_from, &torn))
+    return false;
   for (Real r : state)
     if (!std::isfinite(r)) return false;
   const Real evaluated = state[base - 1];
@@ -244,6 +252,8 @@ bool YarnWovenModel::setInternalState(const std::vector<Real>& state) {
   for (Real& a : angle_anchor_) a = state[k++];
   if (evaluated == 1) compression_.assign(state.begin() + static_cast<std::ptrdiff_t>(k), state.begin() + static_cast<std::ptrdiff_t>(k + c));
   else compression_.clear();
+  self_contacts_ = std::move(contacts);
+  self_contacts_detected_ = detected;
   tears_.torn = std::move(torn);
   applyTornSegments();
   return true;

@@ -169,6 +169,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
   for (std::size_t k = 0; k < n; ++k)
     if (!(lumped_[static_cast<Eigen::Index>(kB * k)] > 0))
       throw SimError("yarn_woven: node " + std::to_string(k) + " lies on no yarn segment (a crossing without yarns)");
+  buildSelfContact();
 }
 
 template <int Nodes, class Matrix>
@@ -258,6 +259,8 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   if (compression_.empty()) updateCompression(q);
   const bool clamped = !options_.exact_hessian;
   addCrossingForces(q, v, &f, nullptr, nullptr, clamped, kAllCrossingTerms, 1);
+  if (!self_contacts_detected_) detectSelfContacts(x);  // lagged like F_n
+  addSelfContactForces(x, v, &f, nullptr, nullptr);
 
   // The clamped Hessian K of the elastic terms (stretch, bending, shear, contact), assembled once: it is
   // the stiffness of the Rayleigh damping F_d = -(alpha M(x) + beta K(x)) v (notes 2.5) and, with
@@ -300,13 +303,14 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     // The held DOFs' mass entries are not damping: a held DOF has no force.
     for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
     addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
+    addSelfContactForces(x, v, nullptr, &jac->dfdx, &jac->dfdv);
   }
   return report;
 }
 
 Real YarnWovenModel::potentialEnergy(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
-  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + tornSegmentWeightEnergy(q) + crossingEnergy(q);
+  return yarnSheetEnergy(sheet_, fabric_, q, gravity_) + tornSegmentWeightEnergy(q) + crossingEnergy(q) + selfContactEnergy(x);
 }
 
 Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {

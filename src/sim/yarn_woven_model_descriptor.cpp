@@ -69,6 +69,12 @@ ParsedYarnOptions parseYarnOptions(const std::map<std::string, std::string>& val
   r.readBool("gravity", &o.model.gravity);
   r.readBool("exact_hessian", &o.model.exact_hessian);
   r.readReal("tear_tension_n", 0, false, &o.model.tear_tension_n);
+  YarnSelfContactOptions& sc = o.model.self_contact;
+  r.readBool("self_contact", &sc.enabled);
+  r.readReal("self_contact_thickness_factor", 0, true, &sc.thickness_factor);
+  r.readReal("self_contact_stiffness_factor", 0, true, &sc.stiffness_factor);
+  r.readReal("self_contact_damping", 0, false, &sc.damping);
+  r.readReal("self_contact_friction", 0, false, &sc.friction);
   r.finish();
   const std::string errors = wovenFabricErrors(o.model.fabric);
   if (!errors.empty()) throw ClothModelError("model yarn_woven: fabric: " + errors);
@@ -103,6 +109,11 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
   d.option_keys.emplace_back("gravity", "true | false");
   d.option_keys.emplace_back("exact_hessian", "true | false: exact instead of clamped Hessians in df/dx");
   d.option_keys.emplace_back("tear_tension_n", "tension [N] >= 0 of one real yarn at which a segment tears (default 0: off)");
+  d.option_keys.emplace_back("self_contact", "true | false: penalty self-contact on extruded triangles (default false)");
+  d.option_keys.emplace_back("self_contact_thickness_factor", "gamma = factor R, > 0 (default 4)");
+  d.option_keys.emplace_back("self_contact_stiffness_factor", "k_p = factor k_s / L, > 0 (default 1)");
+  d.option_keys.emplace_back("self_contact_damping", "d_p = factor 2 sqrt(k_p m_crossing), >= 0 (default 1)");
+  d.option_keys.emplace_back("self_contact_friction", "mu of the contact friction, >= 0 (default: sliding_friction)");
   d.parse_options = [](const std::map<std::string, std::string>& v) { return std::any(parseYarnOptions(v)); };
   d.create = [](const ParticleTopology& topology, const Material& /*material*/, const std::any& options) {
     const auto& o = std::any_cast<const ParsedYarnOptions&>(options);
@@ -120,7 +131,15 @@ ClothModelDescriptor yarnWovenModelDescriptor() {
     const YarnCrossingOptions& c = o.model.crossing;
     f.lines.push_back(std::string("forces: stretch bending") + (o.model.gravity ? " gravity" : "") +
                       (c.shear ? " shear" : "") + (c.friction ? " friction" : "") + (c.contact ? " contact" : "") +
-                      " rayleigh_damping");
+                      (o.model.self_contact.enabled ? " self_contact" : "") + " rayleigh_damping");
+    if (o.model.self_contact.enabled) {
+      const YarnSelfContactOptions& sc = o.model.self_contact;
+      f.numbers.emplace_back("model_options.self_contact_thickness_factor", sc.thickness_factor);
+      f.numbers.emplace_back("model_options.self_contact_stiffness_factor", sc.stiffness_factor);
+      f.numbers.emplace_back("model_options.self_contact_damping", sc.damping);
+      f.numbers.emplace_back("model_options.self_contact_friction",
+                             sc.friction >= 0 ? sc.friction : o.model.fabric.sliding_friction);
+    }
     f.numbers.emplace_back("model_options.friction_stiffness_factor", c.friction_stiffness_factor);
     f.numbers.emplace_back("model_options.shear_friction_stiffness_factor", c.shear_friction_stiffness_factor);
     f.numbers.emplace_back("model_options.jamming_gain", c.jamming_gain);

@@ -20,6 +20,7 @@
 #include "textile_handling/sim/woven_fabric.h"
 #include "textile_handling/sim/yarn_crossing_kernels.h"
 #include "textile_handling/sim/yarn_grid.h"
+#include "textile_handling/sim/yarn_penalty_contact.h"
 #include "textile_handling/sim/yarn_sheet.h"
 
 namespace textile_handling {
@@ -56,6 +57,7 @@ struct YarnWovenOptions {
   /// Tension of one real yarn [N] above which a yarn segment tears (a simulated bundle of n yarns at n
   /// times it); 0 = no tearing. docs/yarn_model.md, "Tearing".
   Real tear_tension_n = 0;
+  YarnSelfContactOptions self_contact;  ///< penalty self-contact on extruded triangles
 };
 
 /// Throws SimError naming tear_tension_n unless `tension_n` is finite and >= 0.
@@ -93,8 +95,10 @@ class YarnWovenModel : public ClothModel {
   /// compression F_n of the new state (eq. 9), which the next step uses as a constant (lagged, notes 9.2).
   void acceptStep(const VecX& x, VecX& v) override;
   /// [sliding anchors (2 per node), angle anchors (4 per crossing pair slot), F_n (per crossing), 1 if
-  /// F_n was evaluated], then, if any segment is torn, the torn segments' indices (ascending) and their
-  /// count. A state without torn segments is the same as before tearing existed.
+  /// F_n was evaluated], with self_contact [1 if detected, count, per contact: node, triangle, side,
+  /// 3 anchor weights] (the sides and anchors carry history: they cannot be recomputed from x), then,
+  /// if any segment is torn, the torn segments' indices (ascending) and their count. A state without
+  /// torn segments is the same as before tearing existed.
   std::vector<Real> internalState() const override;
   bool setInternalState(const std::vector<Real>& state) override;
   /// The lagged normal compression per crossing [N] (of the simulated bundle), empty before the first
@@ -124,6 +128,9 @@ class YarnWovenModel : public ClothModel {
   /// The generalised coordinates of the kernels (absolute arc lengths u, v) of state x.
   VecX kernelCoordinates(const VecX& x) const { return x + arc_offset_; }
   bool isHeld(Index dof) const { return held_[static_cast<std::size_t>(dof)] != 0; }
+  /// The penalty self-contacts of the last accepted step (yarn_woven_self_contact.cpp) and their triangles.
+  const std::vector<yarn::PenaltyContact>& selfContacts() const { return self_contacts_; }
+  const yarn::YarnTriangles& selfContactTriangles() const { return triangles_; }
 
   // Tearing (yarn_woven_tearing.cpp, docs/yarn_model.md "Tearing").
   /// Segments torn so far.
@@ -215,6 +222,18 @@ class YarnWovenModel : public ClothModel {
   void addTornSegmentMassProduct(const VecX& q, const VecX& v, VecX& mv) const;
   /// The torn segments' weight (their gravity terms, whose arc lengths no longer move) [J].
   Real tornSegmentWeightEnergy(const VecX& q) const;
+  // Penalty self-contact (yarn_woven_self_contact.cpp).
+  void buildSelfContact();
+  void detectSelfContacts(const VecX& x);
+  /// Adds the contacts' forces into f and their diagonal Jacobian blocks into dfdx and dfdv (each if not null).
+  void addSelfContactForces(const VecX& x, const VecX& v, VecX* f, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv) const;
+  Real selfContactEnergy(const VecX& x) const;
+  void acceptSelfContacts(const VecX& x);
+  void appendSelfContactState(std::vector<Real>& s) const;
+  /// Reads the self-contact part of an internal state from `from` and sets *end past it; false if
+  /// malformed (nothing changed).
+  bool readSelfContactState(const std::vector<Real>& s, std::size_t from, std::vector<yarn::PenaltyContact>* contacts,
+                            bool* detected, std::size_t* end) const;
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
@@ -242,6 +261,11 @@ class YarnWovenModel : public ClothModel {
   TearRecord tears_;
   BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
   VecX damping_;                 // K v and M v of the damping force, reused
+  // Penalty self-contact: triangles, constants, the contacts of the last accepted step.
+  yarn::YarnTriangles triangles_;
+  std::vector<yarn::PenaltyContact> self_contacts_;
+  bool self_contacts_detected_ = false;
+  Real gamma_ = 0, k_p_ = 0, d_p_ = 0, mu_p_ = 0;
 };
 
 }  // namespace textile_handling
