@@ -3,9 +3,13 @@
 // to the plain serial loop's).
 #pragma once
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cstddef>
 #include <vector>
+
+#include "textile_handling/sim/types.h"
 
 namespace textile_handling {
 
@@ -21,6 +25,30 @@ void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&&
 #pragma omp parallel for schedule(static) if (n > 64)
     for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
     for (std::ptrdiff_t k = 0; k < n; ++k) apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+  }
+}
+
+/// As computeInParallelApplyInOrder(), but the adding is parallel too: every thread owns a range of
+/// rows [row_begin, row_end) of the `num_rows` (nodes) and calls apply(i, local, row_begin, row_end)
+/// for every i in increasing order, which must add only the entries of rows in its range. Each entry
+/// still receives its terms in item order, so the sums are those of the serial loop on any thread
+/// count.
+template <class Local, class Compute, class ApplyRows>
+void computeInParallelApplyByRows(std::size_t count, Index num_rows, Compute&& compute, ApplyRows&& apply,
+                                  std::size_t chunk = 2048) {
+  if (count == 0) return;
+  std::vector<Local> buffer(std::min(count, chunk));
+  for (std::size_t start = 0; start < count; start += chunk) {
+    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(std::min(chunk, count - start));
+#pragma omp parallel for schedule(static) if (n > 64)
+    for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+#pragma omp parallel if (n > 64)
+    {
+      const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
+      const Index lo = num_rows * t / threads, hi = num_rows * (t + 1) / threads;
+      for (std::ptrdiff_t k = 0; k < n; ++k)
+        apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)], lo, hi);
+    }
   }
 }
 

@@ -130,23 +130,32 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
                                        BlockSparseMatrix* dfdv, bool clamped, int terms, Real scale) const {
   const bool friction = options_.crossing.friction && (terms & kFrictionTerms);
   const bool conservative = terms & kConservativeTerms;
-  auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor) {
-    for (int a = 0; a < 3; ++a)
+  // Adds factor m into the position blocks of the pair's rows whose node lies in [lo, hi).
+  auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor, Index lo, Index hi) {
+    for (int a = 0; a < 3; ++a) {
+      if (p.node[static_cast<std::size_t>(a)] < lo || p.node[static_cast<std::size_t>(a)] >= hi) continue;
       for (int b = 0; b < 3; ++b) {
         Real* blk = dfdx->block(p.slot[static_cast<std::size_t>(3 * a + b)]);
         for (int r = 0; r < 3; ++r)
           for (int c = 0; c < 3; ++c) blk[r * kB + c] += factor * m(3 * a + r, 3 * b + c);
       }
+    }
   };
-  // The kernels of a pair run in parallel, their sums in pair order (ordered_parallel.h).
+  auto addForce = [&](const ShearPair& p, const yarn::CrossingVector& g, Real factor, Index lo, Index hi) {
+    for (int a = 0; a < 3; ++a) {
+      const Index node = p.node[static_cast<std::size_t>(a)];
+      if (node >= lo && node < hi) f->segment<3>(kB * node) += factor * g.segment<3>(3 * a);
+    }
+  };
+  // The kernels of a pair run in parallel, and so do their sums, by rows, in pair order (ordered_parallel.h).
   struct PairTerms {
     yarn::CrossingVector gradient;
     yarn::CrossingMatrix hessian;
     yarn::ShearFriction friction;
   };
   const bool with_f = conservative && f, with_dfdx = conservative && dfdx;
-  computeInParallelApplyInOrder<PairTerms>(
-      conservative || friction ? shear_pairs_.size() : 0,
+  computeInParallelApplyByRows<PairTerms>(
+      conservative || friction ? shear_pairs_.size() : 0, numNodes(),
       [&](std::size_t k, PairTerms& t) {
         const ShearPair& p = shear_pairs_[k];
         if (p.torn) return;
@@ -157,16 +166,14 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
         if (with_dfdx) t.hessian = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
         if (friction) t.friction = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, clamped);
       },
-      [&](std::size_t k, const PairTerms& t) {
+      [&](std::size_t k, const PairTerms& t, Index lo, Index hi) {
         const ShearPair& p = shear_pairs_[k];
         if (p.torn) return;
-        if (with_f && t.gradient.allFinite())
-          for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) -= t.gradient.segment<3>(3 * a);
-        if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale);
+        if (with_f && t.gradient.allFinite()) addForce(p, t.gradient, -1, lo, hi);
+        if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale, lo, hi);
         if (!friction || !t.friction.force.allFinite() || !t.friction.jacobian.allFinite()) return;
-        if (f)
-          for (int a = 0; a < 3; ++a) f->segment<3>(kB * p.node[static_cast<std::size_t>(a)]) += t.friction.force.segment<3>(3 * a);
-        if (dfdx) addPositions(p, t.friction.jacobian, scale);
+        if (f) addForce(p, t.friction.force, 1, lo, hi);
+        if (dfdx) addPositions(p, t.friction.jacobian, scale, lo, hi);
       });
   for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
     const ContactPair& p = contacts_[k];

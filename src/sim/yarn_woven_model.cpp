@@ -1,6 +1,8 @@
 // The yarn-level woven cloth model (yarn_woven_model.h).
 #include "textile_handling/sim/yarn_woven_model.h"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -173,9 +175,11 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
 }
 
 template <int Nodes, class Matrix>
-void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a) const {
+void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, Index row_begin,
+                                   Index row_end) const {
   for (int r = 0; r < 4 * Nodes; ++r) {
-    if (held_[s.dof[static_cast<std::size_t>(r)]]) continue;
+    const Index row_node = s.node[static_cast<std::size_t>(r / 4)];
+    if (row_node < row_begin || row_node >= row_end || held_[s.dof[static_cast<std::size_t>(r)]]) continue;
     const int lr = static_cast<int>(s.dof[static_cast<std::size_t>(r)] % kB);  // node-local coordinate
     for (int c = 0; c < 4 * Nodes; ++c) {
       if (m(r, c) == 0 || held_[s.dof[static_cast<std::size_t>(c)]]) continue;
@@ -187,27 +191,41 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
 
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
-  computeInParallelApplyInOrder<yarn::SegmentMatrix>(
-      segments_.size(),
+  const Index n = numNodes();
+  computeInParallelApplyByRows<yarn::SegmentMatrix>(
+      segments_.size(), n,
       [&](std::size_t k, yarn::SegmentMatrix& h) {
         if (segments_[k].torn) return;
         const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
         h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
       },
-      [&](std::size_t k, const yarn::SegmentMatrix& h) {
-        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a);
+      [&](std::size_t k, const yarn::SegmentMatrix& h, Index lo, Index hi) {
+        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a, lo, hi);
       });
-  computeInParallelApplyInOrder<yarn::BendMatrix>(
-      bends_.size(),
+  computeInParallelApplyByRows<yarn::BendMatrix>(
+      bends_.size(), n,
       [&](std::size_t k, yarn::BendMatrix& h) {
         if (bends_[k].torn) return;
         const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
         h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
       },
-      [&](std::size_t k, const yarn::BendMatrix& h) {
-        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a);
+      [&](std::size_t k, const yarn::BendMatrix& h, Index lo, Index hi) {
+        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a, lo, hi);
       });
 }
+
+namespace {
+
+// to = factor * from, entry by entry on all threads (factor 0 zeroes `to`, also over NaNs in `from`).
+void scaleInto(const BlockSparseMatrix& from, Real factor, BlockSparseMatrix& to) {
+  const Real* src = from.values().data();
+  Real* dst = to.values().data();
+  const auto count = static_cast<std::ptrdiff_t>(to.values().size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t i = 0; i < count; ++i) dst[i] = factor == 0 ? 0 : factor * src[i];
+}
+
+}  // namespace
 
 Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const {
   const int c = static_cast<int>(dof % kB);
@@ -217,7 +235,13 @@ Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const
 void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
   if (!options_.gravity) return;
   const yarn::SegmentMatrix h = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
-  for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a);
+  const Index n = numNodes();
+#pragma omp parallel
+  {  // by rows, every row in segment order (ordered_parallel.h)
+    const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
+    const Index lo = n * t / threads, hi = n * (t + 1) / threads;
+    for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a, lo, hi);
+  }
 }
 
 ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
@@ -268,7 +292,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
   const bool need_k = beta > 0 || (jac && clamped);
   if (need_k) {
-    stiffness_.setZero();
+    scaleInto(stiffness_, 0, stiffness_);
     assembleHessian(q, true, 1, stiffness_);
     addCrossingForces(q, v, nullptr, &stiffness_, nullptr, true, kConservativeTerms, -1);
   }
@@ -284,8 +308,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
     if (clamped) {
-      std::transform(stiffness_.values().begin(), stiffness_.values().end(), jac->dfdx.values().begin(),
-                     [](Real k) { return -k; });
+      scaleInto(stiffness_, -1, jac->dfdx);
       addGravityHessian(-1, jac->dfdx);
     } else {
       jac->dfdx.setZero();
@@ -294,11 +317,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
       addCrossingForces(q, v, nullptr, &jac->dfdx, nullptr, false, kConservativeTerms, 1);
     }
     // df/dv = -(alpha M(x) + beta K).
-    if (beta > 0)
-      std::transform(stiffness_.values().begin(), stiffness_.values().end(), jac->dfdv.values().begin(),
-                     [beta](Real k) { return -beta * k; });
-    else
-      jac->dfdv.setZero();
+    scaleInto(stiffness_, beta > 0 ? -beta : 0, jac->dfdv);
     if (alpha > 0) addMassMatrix(x, -alpha, jac->dfdv);
     // The held DOFs' mass entries are not damping: a held DOF has no force.
     for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
@@ -349,14 +368,14 @@ std::vector<DrawnYarn> YarnWovenModel::drawnYarns() const {
 
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
-  computeInParallelApplyInOrder<yarn::SegmentMatrix>(
-      segments_.size(),
+  computeInParallelApplyByRows<yarn::SegmentMatrix>(
+      segments_.size(), numNodes(),
       [&](std::size_t k, yarn::SegmentMatrix& m) {
         if (segments_[k].torn) return;
         m = yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k])), fabric_.linear_density_kg_per_m);
       },
-      [&](std::size_t k, const yarn::SegmentMatrix& m) {
-        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a);
+      [&](std::size_t k, const yarn::SegmentMatrix& m, Index lo, Index hi) {
+        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a, lo, hi);
       });
   addTornSegmentMass(q, scale, a);
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];

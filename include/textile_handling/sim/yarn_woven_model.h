@@ -12,6 +12,7 @@
 
 #include <array>
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -237,7 +238,9 @@ class YarnWovenModel : public ClothModel {
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
-  void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a) const;
+  /// Adds scale m into a's blocks of the stencil's free DOFs, rows of nodes in [row_begin, row_end) only.
+  void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, Index row_begin = 0,
+                     Index row_end = std::numeric_limits<Index>::max()) const;
 
   YarnSheet sheet_;
   WovenFabric fabric_;
