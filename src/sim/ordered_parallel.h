@@ -13,19 +13,33 @@
 
 namespace textile_handling {
 
-/// For i = 0 .. count - 1: compute(i, local) fills `local` (a default-constructed Local) in parallel,
-/// then apply(i, local) runs serially in increasing i. Works in chunks of `chunk` items so the buffer
-/// stays small (chunk Locals). compute must not write shared state; apply may.
-template <class Local, class Compute, class Apply>
-void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&& apply, std::size_t chunk = 2048) {
+namespace ordered_parallel_detail {
+
+/// Splits [0, count) into chunks of `chunk` items; for each chunk, compute(i, local) fills the chunk's
+/// buffer in parallel and then apply_chunk(start, n, buffer) consumes it.
+template <class Local, class Compute, class ApplyChunk>
+void forEachComputedChunk(std::size_t count, std::size_t chunk, Compute& compute, ApplyChunk&& apply_chunk) {
   if (count == 0) return;
   std::vector<Local> buffer(std::min(count, chunk));
   for (std::size_t start = 0; start < count; start += chunk) {
     const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(std::min(chunk, count - start));
 #pragma omp parallel for schedule(static) if (n > 64)
     for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
-    for (std::ptrdiff_t k = 0; k < n; ++k) apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+    apply_chunk(start, n, buffer);
   }
+}
+
+}  // namespace ordered_parallel_detail
+
+/// For i = 0 .. count - 1: compute(i, local) fills `local` (a default-constructed Local) in parallel,
+/// then apply(i, local) runs serially in increasing i. Works in chunks of `chunk` items so the buffer
+/// stays small (chunk Locals). compute must not write shared state; apply may.
+template <class Local, class Compute, class Apply>
+void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&& apply, std::size_t chunk = 2048) {
+  ordered_parallel_detail::forEachComputedChunk<Local>(
+      count, chunk, compute, [&](std::size_t start, std::ptrdiff_t n, const std::vector<Local>& buffer) {
+        for (std::ptrdiff_t k = 0; k < n; ++k) apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+      });
 }
 
 /// As computeInParallelApplyInOrder(), but the adding is parallel too: every thread owns a range of
@@ -36,20 +50,16 @@ void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&&
 template <class Local, class Compute, class ApplyRows>
 void computeInParallelApplyByRows(std::size_t count, Index num_rows, Compute&& compute, ApplyRows&& apply,
                                   std::size_t chunk = 2048) {
-  if (count == 0) return;
-  std::vector<Local> buffer(std::min(count, chunk));
-  for (std::size_t start = 0; start < count; start += chunk) {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(std::min(chunk, count - start));
-#pragma omp parallel for schedule(static) if (n > 64)
-    for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
+  ordered_parallel_detail::forEachComputedChunk<Local>(
+      count, chunk, compute, [&](std::size_t start, std::ptrdiff_t n, const std::vector<Local>& buffer) {
 #pragma omp parallel if (n > 64)
-    {
-      const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
-      const Index lo = num_rows * t / threads, hi = num_rows * (t + 1) / threads;
-      for (std::ptrdiff_t k = 0; k < n; ++k)
-        apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)], lo, hi);
-    }
-  }
+        {
+          const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
+          const Index lo = num_rows * t / threads, hi = num_rows * (t + 1) / threads;
+          for (std::ptrdiff_t k = 0; k < n; ++k)
+            apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)], lo, hi);
+        }
+      });
 }
 
 }  // namespace textile_handling

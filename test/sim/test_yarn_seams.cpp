@@ -297,36 +297,8 @@ TEST(YarnSeams, JacobiansMatchFiniteDifferences) {
   o.fabric.young_modulus_pa = 1e5;
   YarnWovenModel m = seamedModel(o);
   const VecX x = perturbed(m, 7);
-  VecX v = VecX::Zero(x.size());
-  ForceJacobians jac = m.makeJacobians();
-  VecX f;
-  m.computeForces(x, v, f, &jac);
-  const Eigen::MatrixXd dfdx = denseMatrix(jac.dfdx), dfdv = denseMatrix(jac.dfdv);
-  const Real h = 1e-9;
-  Eigen::MatrixXd fdx(x.size(), x.size()), fdv(x.size(), x.size());
-  for (Index d = 0; d < x.size(); ++d) {
-    VecX a = x, b = x, fa, fb;
-    a[d] += h;
-    b[d] -= h;
-    m.computeForces(a, v, fa, nullptr);
-    m.computeForces(b, v, fb, nullptr);
-    fdx.col(d) = (fa - fb) / (2 * h);
-    VecX va = v, vb = v;
-    va[d] += 1e-3;
-    vb[d] -= 1e-3;
-    m.computeForces(x, va, fa, nullptr);
-    m.computeForces(x, vb, fb, nullptr);
-    fdv.col(d) = (fa - fb) / 2e-3;
-  }
-  for (Index d = 0; d < x.size(); ++d)
-    if (m.isHeld(d)) {
-      EXPECT_EQ(dfdx.row(d).cwiseAbs().maxCoeff(), 0);
-      EXPECT_EQ(dfdx.col(d).cwiseAbs().maxCoeff(), 0);
-      fdx.col(d).setZero();
-      fdv.col(d).setZero();
-    }
-  EXPECT_LT((dfdx - fdx).cwiseAbs().maxCoeff(), 1e-5 * dfdx.cwiseAbs().maxCoeff());
-  EXPECT_LT((dfdv - fdv).cwiseAbs().maxCoeff(), 1e-7 * dfdv.cwiseAbs().maxCoeff());
+  const Eigen::MatrixXd dfdx =
+      yarn_test_support::expectJacobiansMatchFiniteDifferences(m, x, VecX::Zero(x.size()), 1e-9, 1e-3, 1e-5, 1e-7).dfdx;
   // Two neighbouring ends on the bottom seam are coupled only through the seam.
   const YarnPiece& bottom = *seamPieces(m.sheet().grid)[0];
   ASSERT_EQ(bottom.line, 0u);

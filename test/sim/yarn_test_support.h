@@ -6,10 +6,14 @@
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
+#include <gtest/gtest.h>
+
 #include <Eigen/Eigenvalues>
 #include <functional>
 
+#include "sim_test_support.h"
 #include "textile_handling/sim/types.h"
+#include "textile_handling/sim/yarn_woven_model.h"
 
 namespace textile_handling {
 namespace yarn_test_support {
@@ -47,6 +51,41 @@ Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Rea
     J.col(k) = (f(a) - f(b)) / (2 * h);
   }
   return J;
+}
+
+/// The model's df/dx and df/dv at (x, v), dense.
+struct DenseJacobians {
+  Eigen::MatrixXd dfdx, dfdv;
+};
+
+/// Checks a yarn model's Jacobians at (x, v) against central differences of its forces (steps hx on x,
+/// hv on v): every held DOF's row and column of df/dx and row of df/dv are zero, and its difference
+/// columns are left out (perturbing a held DOF is no motion of the model); the rest agrees within
+/// x_tolerance and v_tolerance times the largest entry. Returns the analytic Jacobians.
+inline DenseJacobians expectJacobiansMatchFiniteDifferences(YarnWovenModel& m, const VecX& x, const VecX& v, Real hx,
+                                                            Real hv, Real x_tolerance, Real v_tolerance) {
+  ForceJacobians jac = m.makeJacobians();
+  VecX f;
+  m.computeForces(x, v, f, &jac);  // also evaluates the lagged quantities at x
+  DenseJacobians out{sim_test_support::denseMatrix(jac.dfdx), sim_test_support::denseMatrix(jac.dfdv)};
+  auto forceAt = [&](const VecX& y, const VecX& w) {
+    VecX r;
+    m.computeForces(y, w, r, nullptr);
+    return r;
+  };
+  Eigen::MatrixXd fdx = numericJacobianN<Eigen::Dynamic>([&](const VecX& y) { return forceAt(y, v); }, x, hx);
+  Eigen::MatrixXd fdv = numericJacobianN<Eigen::Dynamic>([&](const VecX& w) { return forceAt(x, w); }, v, hv);
+  for (Index d = 0; d < x.size(); ++d)
+    if (m.isHeld(d)) {
+      EXPECT_EQ(out.dfdx.row(d).cwiseAbs().maxCoeff(), 0) << d;
+      EXPECT_EQ(out.dfdx.col(d).cwiseAbs().maxCoeff(), 0) << d;
+      EXPECT_EQ(out.dfdv.row(d).cwiseAbs().maxCoeff(), 0) << d;
+      fdx.col(d).setZero();
+      fdv.col(d).setZero();
+    }
+  EXPECT_LT((out.dfdx - fdx).cwiseAbs().maxCoeff(), x_tolerance * out.dfdx.cwiseAbs().maxCoeff());
+  EXPECT_LT((out.dfdv - fdv).cwiseAbs().maxCoeff(), v_tolerance * out.dfdv.cwiseAbs().maxCoeff());
+  return out;
 }
 
 }  // namespace yarn_test_support
