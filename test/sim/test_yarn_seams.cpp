@@ -310,12 +310,7 @@ TEST(YarnSeams, MassIsPositiveDefiniteAndCarriesTheSeams) {
   const YarnWovenOptions o;
   const YarnWovenModel m = seamedModel(o), free = seamedModel(o, {});
   const VecX x = perturbed(m, 5);
-  BlockSparseMatrix a(&m.jacobianPattern());
-  a.setZero();
-  m.addMassMatrix(x, 1.0, a);
-  const Eigen::MatrixXd M = denseMatrix(a);
-  EXPECT_LT((M - M.transpose()).cwiseAbs().maxCoeff(), 1e-20);
-  EXPECT_GT(yarn_test_support::eigenvalues(M).minCoeff(), 0);
+  const Eigen::MatrixXd M = yarn_test_support::expectSymmetricPositiveDefiniteMass(m, x);
   // The seams' yarn: the bottom edge's from x = 0.5 to 4.5 mm and the cut's 2.5 sqrt(2) mm.
   const Real seam_length = 4 * kMm + 2.5 * std::sqrt(2.0) * kMm;
   EXPECT_NEAR(m.totalMass() - free.totalMass(), o.fabric.linear_density_kg_per_m * seam_length, 1e-18);

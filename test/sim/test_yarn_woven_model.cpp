@@ -215,12 +215,7 @@ TEST(YarnWovenModel, MassMatrixIsSymmetricPositiveDefiniteAndMatchesItsProduct) 
   const DrapeScene scene = smallSheet(yarnSpec());
   const ClothModel& m = *scene.model;
   const VecX x = perturbed(scene, 5);
-  BlockSparseMatrix a(&m.jacobianPattern());
-  a.setZero();
-  m.addMassMatrix(x, 1.0, a);
-  const Eigen::MatrixXd M = denseMatrix(a);
-  EXPECT_LT((M - M.transpose()).cwiseAbs().maxCoeff(), 1e-20);
-  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(M).eigenvalues().minCoeff(), 0);
+  const Eigen::MatrixXd M = yarn_test_support::expectSymmetricPositiveDefiniteMass(m, x);
   std::mt19937 rng(2);
   std::normal_distribution<Real> n(0, 1);
   VecX v(x.size());

@@ -88,5 +88,16 @@ inline DenseJacobians expectJacobiansMatchFiniteDifferences(YarnWovenModel& m, c
   return out;
 }
 
+/// The model's mass matrix M(x), dense, after checking that it is symmetric and positive definite.
+inline Eigen::MatrixXd expectSymmetricPositiveDefiniteMass(const ClothModel& m, const VecX& x) {
+  BlockSparseMatrix a(&m.jacobianPattern());
+  a.setZero();
+  m.addMassMatrix(x, 1.0, a);
+  const Eigen::MatrixXd M = sim_test_support::denseMatrix(a);
+  EXPECT_LT((M - M.transpose()).cwiseAbs().maxCoeff(), 1e-20);
+  EXPECT_GT(eigenvalues(M).minCoeff(), 0);
+  return M;
+}
+
 }  // namespace yarn_test_support
 }  // namespace textile_handling
