@@ -17,7 +17,6 @@ AnchoredClothModel::AnchoredClothModel(ClothModel& inner, std::vector<Index> nod
     : inner_(inner), nodes_(std::move(nodes)), anchors_(std::move(anchors)), k_(stiffness) {
   if (nodes_.size() != anchors_.size()) throw SimError("AnchoredClothModel: nodes and anchors differ in length");
   if (!(k_ >= 0) || !std::isfinite(k_)) throw SimError("AnchoredClothModel: stiffness must be finite and >= 0");
-  if (inner_.dofsPerNode() != 3) throw SimError("AnchoredClothModel: needs 3 DOFs per node");
   for (Index p : nodes_)
     if (p < 0 || p >= inner_.numNodes()) throw SimError("AnchoredClothModel: node out of range");
 }
@@ -25,16 +24,21 @@ AnchoredClothModel::AnchoredClothModel(ClothModel& inner, std::vector<Index> nod
 ForceReport AnchoredClothModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
   const ForceReport rep = inner_.computeForces(x, v, f, jac);
   const BlockPattern& p = inner_.jacobianPattern();
+  const int b = inner_.dofsPerNode();  // a node's first three DOFs are its position
   for (size_t k = 0; k < nodes_.size(); ++k) {
-    node3(f, nodes_[k]) -= k_ * (node3(x, nodes_[k]) - anchors_[k]);
-    if (jac) jac->dfdx.add3(p.diagonal(nodes_[k]), -k_ * Mat3::Identity());
+    f.segment<3>(b * nodes_[k]) -= k_ * (x.segment<3>(b * nodes_[k]) - anchors_[k]);
+    if (jac) {
+      Real* block = jac->dfdx.block(p.diagonal(nodes_[k]));
+      for (int c = 0; c < 3; ++c) block[c * b + c] -= k_;
+    }
   }
   return rep;
 }
 
 Real AnchoredClothModel::potentialEnergy(const VecX& x) const {
   Real e = inner_.potentialEnergy(x);
-  for (size_t k = 0; k < nodes_.size(); ++k) e += 0.5 * k_ * (node3(x, nodes_[k]) - anchors_[k]).squaredNorm();
+  const int b = inner_.dofsPerNode();
+  for (size_t k = 0; k < nodes_.size(); ++k) e += 0.5 * k_ * (x.segment<3>(b * nodes_[k]) - anchors_[k]).squaredNorm();
   return e;
 }
 

@@ -319,15 +319,6 @@ TEST(YarnSeams, MassIsPositiveDefiniteAndCarriesTheSeams) {
   EXPECT_NEAR(m.kineticEnergy(x, u), 0.5 * m.totalMass(), 1e-12 * m.totalMass());
 }
 
-SimulationSettings fixedSteps(Real dt, Real until) {
-  SimulationSettings s;
-  s.integrator = IntegratorType::kSemiImplicitEuler;
-  s.policy = StepPolicy::kFixed;
-  s.dt = dt;
-  s.max_time = until;
-  s.rest_duration = 1e9;  // never stop early
-  return s;
-}
 
 struct EdgeFigures {
   Real max_gap_ratio = 0;  ///< largest distance between neighbouring ends on the edge over its flat value
@@ -347,7 +338,7 @@ EdgeFigures hangFromEdge(const std::vector<Vec2>& outline, std::size_t edge, boo
     pins.nodes.push_back(static_cast<Index>(n));
     pins.anchors.push_back(x0.segment<3>(5 * static_cast<Eigen::Index>(n)));
   }
-  DrapeSimulation sim(m, pins, fixedSteps(1e-3, 1.0), x0, VecX::Zero(x0.size()));
+  DrapeSimulation sim(m, pins, yarn_test_support::fixedSteps(IntegratorType::kSemiImplicitEuler, 1e-3, 1.0), x0, VecX::Zero(x0.size()));
   const RunResult r = sim.run();
   EXPECT_FALSE(r.diverged) << r.divergence_reason;
   const VecX& x = sim.state();

@@ -1,6 +1,8 @@
 // Dynamics of the yarn_woven model's penalty self-contact: a strip folded into a U whose two layers
 // move towards each other stays two layers with self_contact on, and passes through itself with it off.
 // docs/yarn_model.md, "Collisions".
+#include "yarn_test_support.h"  // first: see there
+
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -79,13 +81,8 @@ FoldRun runFold(bool self_contact) {
     x0.segment<3>(5 * static_cast<Eigen::Index>(k)) = folded(g.nodePosition(k));
     v0[5 * static_cast<Eigen::Index>(k) + 2] = foldSpeed(g.nodePosition(k));
   }
-  SimulationSettings s;
-  s.integrator = IntegratorType::kSemiImplicitEuler;
-  s.policy = StepPolicy::kFixed;
-  s.dt = 2e-5;
-  s.max_time = 0.0016;
-  s.rest_duration = 1e9;
-  DrapeSimulation sim(m, PinnedNodes{}, s, x0, v0);
+  DrapeSimulation sim(m, PinnedNodes{}, yarn_test_support::fixedSteps(IntegratorType::kSemiImplicitEuler, 2e-5, 0.0016), x0,
+                      v0);
   FoldRun r;
   r.min_gap = layerGap(g, x0);
   EXPECT_NEAR(r.min_gap, 2 * kR, 1e-9);

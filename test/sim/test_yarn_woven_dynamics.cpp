@@ -1,6 +1,8 @@
 // Dynamics of the yarn_woven model on yarns with free ends (layYarnGrid): energy conservation without
 // friction and damping, stick below and slip above the Coulomb limit of a pulled yarn, and a pinched
 // hem crossing pulling its yarn through while its neighbours stay put. docs/yarn_model.md, "Tests".
+#include "yarn_test_support.h"  // first: see there
+
 #include <gtest/gtest.h>
 
 #include <limits>
@@ -82,15 +84,7 @@ const YarnPiece& middleWarp(const YarnWovenModel& m) {
   throw std::runtime_error("no middle warp");
 }
 
-SimulationSettings fixedSteps(IntegratorType integrator, Real dt, Real until) {
-  SimulationSettings s;
-  s.integrator = integrator;
-  s.policy = StepPolicy::kFixed;
-  s.dt = dt;
-  s.max_time = until;
-  s.rest_duration = 1e9;  // never stop early
-  return s;
-}
+using yarn_test_support::fixedSteps;
 
 TEST(YarnWovenDynamics, EnergyIsConservedWithoutFrictionAndDamping) {
   ThreadScope threads(1);

@@ -22,6 +22,7 @@
 #include "sim_test_support.h"
 #include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/stability_scenes.h"
 #include "textile_handling/sim/yarn_woven_model.h"
 
 namespace textile_handling {
@@ -31,51 +32,6 @@ using sim_test_support::denseMatrix;
 using test_support::ThreadScope;
 using yarn_test_support::numericGradientN;
 using yarn_test_support::numericJacobianN;
-
-// The yarn_woven model with some nodes tied to fixed points by stiff zero-length springs (a clamp that
-// does not move while the pins do: DrapeSimulation moves all pins along one offset).
-class ClampedModel : public ClothModel {
- public:
-  ClampedModel(YarnWovenModel& inner, std::vector<Index> nodes, std::vector<Vec3> anchors, Real stiffness)
-      : inner_(inner), nodes_(std::move(nodes)), anchors_(std::move(anchors)), k_(stiffness) {}
-
-  std::string name() const override { return inner_.name(); }
-  Index numNodes() const override { return inner_.numNodes(); }
-  int dofsPerNode() const override { return inner_.dofsPerNode(); }
-  const BlockPattern& jacobianPattern() const override { return inner_.jacobianPattern(); }
-  ForceReport computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) override {
-    const ForceReport r = inner_.computeForces(x, v, f, jac);
-    for (std::size_t k = 0; k < nodes_.size(); ++k) {
-      f.segment<3>(5 * nodes_[k]) -= k_ * (x.segment<3>(5 * nodes_[k]) - anchors_[k]);
-      if (jac) {
-        Real* block = jac->dfdx.block(jacobianPattern().diagonal(nodes_[k]));
-        for (int c = 0; c < 3; ++c) block[c * 6] -= k_;
-      }
-    }
-    return r;
-  }
-  Real potentialEnergy(const VecX& x) const override {
-    Real e = inner_.potentialEnergy(x);
-    for (std::size_t k = 0; k < nodes_.size(); ++k) e += 0.5 * k_ * (x.segment<3>(5 * nodes_[k]) - anchors_[k]).squaredNorm();
-    return e;
-  }
-  Real maxEdgeStretch(const VecX& x) const override { return inner_.maxEdgeStretch(x); }
-  void acceptStep(const VecX& x, VecX& v) override { inner_.acceptStep(x, v); }
-  std::vector<Real> internalState() const override { return inner_.internalState(); }
-  bool setInternalState(const std::vector<Real>& s) override { return inner_.setInternalState(s); }
-  bool hasLumpedMass() const override { return false; }
-  const VecX& massPerDof() const override { return inner_.massPerDof(); }
-  void addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const override { inner_.addMassMatrix(x, scale, a); }
-  void multiplyMass(const VecX& x, const VecX& v, VecX& mv) const override { inner_.multiplyMass(x, v, mv); }
-  Real gravitationalEnergy(const VecX& x) const override { return inner_.gravitationalEnergy(x); }
-  Real totalMass() const override { return inner_.totalMass(); }
-
- private:
-  YarnWovenModel& inner_;
-  std::vector<Index> nodes_;
-  std::vector<Vec3> anchors_;
-  Real k_;
-};
 
 constexpr Real kStripLength = 0.01, kStripWidth = 0.003, kPull = 0.008, kPullTime = 0.1;
 constexpr Real kDt = 1e-4, kEnd = 0.15;
@@ -99,7 +55,7 @@ struct PulledStrip {
     pins.waypoint_offsets = {Vec3::Zero(), Vec3(kPull, 0, 0)};
     // A clamp 100 times as stiff as a segment: it gives way by about 10 um at the peak tension.
     const Real clamp = 100 * model.fabric().stretchStiffness() / model.fabric().warpSpacing();
-    clamped = std::make_unique<ClampedModel>(model, left, anchors, clamp);
+    clamped = std::make_unique<AnchoredClothModel>(model, left, anchors, clamp);
   }
   static YarnWovenModel makeModel(Real tear_tension_n) {
     YarnWovenOptions o;
@@ -110,17 +66,12 @@ struct PulledStrip {
     return YarnWovenModel(buildYarnSheet(layYarnGrid(strip, o.fabric)), o.fabric, o);
   }
   DrapeSimulation simulation() const {
-    SimulationSettings s;
-    s.integrator = IntegratorType::kSemiImplicitEuler;
-    s.policy = StepPolicy::kFixed;
-    s.dt = kDt;
-    s.max_time = kEnd;
-    s.rest_duration = 1e9;  // never stop early
-    return DrapeSimulation(*clamped, pins, s, x0, VecX::Zero(x0.size()));
+    return DrapeSimulation(*clamped, pins, yarn_test_support::fixedSteps(IntegratorType::kSemiImplicitEuler, kDt, kEnd), x0,
+                           VecX::Zero(x0.size()));
   }
 
   YarnWovenModel model;
-  std::unique_ptr<ClampedModel> clamped;
+  std::unique_ptr<AnchoredClothModel> clamped;
   PinnedNodes pins;
   VecX x0;
 };

@@ -12,6 +12,7 @@
 #include <functional>
 
 #include "sim_test_support.h"
+#include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/types.h"
 #include "textile_handling/sim/yarn_woven_model.h"
 
@@ -51,6 +52,17 @@ Eigen::Matrix<Real, N, N> numericJacobianN(const std::function<Eigen::Matrix<Rea
     J.col(k) = (f(a) - f(b)) / (2 * h);
   }
   return J;
+}
+
+/// Fixed steps of dt with `integrator` until `until` [s]; the run never stops early at rest.
+inline SimulationSettings fixedSteps(IntegratorType integrator, Real dt, Real until) {
+  SimulationSettings s;
+  s.integrator = integrator;
+  s.policy = StepPolicy::kFixed;
+  s.dt = dt;
+  s.max_time = until;
+  s.rest_duration = 1e9;
+  return s;
 }
 
 /// The model's df/dx and df/dv at (x, v), dense.

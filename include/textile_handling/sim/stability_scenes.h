@@ -24,9 +24,10 @@
 
 namespace textile_handling {
 
-/// Wraps a cloth model and ties some nodes to fixed points with zero-length springs
-/// f = -k (x - anchor), df/dx = -k I (on the diagonal blocks, which every pattern has). Everything
-/// else (masses, pattern, name, internal state, acceptStep) is the wrapped model's.
+/// Wraps a cloth model and ties some nodes to fixed points with zero-length springs on their positions
+/// (a node's first three DOFs, for any DOFs per node) f = -k (x - anchor), df/dx = -k I (on the
+/// diagonal blocks, which every pattern has). Everything else (masses, pattern, name, internal state,
+/// acceptStep) is the wrapped model's.
 class AnchoredClothModel : public ClothModel {
  public:
   AnchoredClothModel(ClothModel& inner, std::vector<Index> nodes, std::vector<Vec3> anchors, Real stiffness);
