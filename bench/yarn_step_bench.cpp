@@ -5,14 +5,15 @@
 //                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
 //                   [--linear-tolerance T] [--accept-tolerance T] [--newton-tolerance T]
 //                   [--preconditioner two_level|block_jacobi] [--smoothing-steps S] [--warm-start 0|1]
-//                   [--self-collision 0|1] [--reference-tolerance T]
+//                   [--self-collision 0|1] [--reference-tolerance T] [--model-option KEY=VALUE ...]
 //
 // Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
 // from its two upper corners and released flat, one untimed step (it allocates the Jacobians and the
 // solver's structures) and then K timed fixed steps of --dt (default 1 ms, the source's step) with
 // --integrator (default semi_implicit). The solver options set the SolverSettings fields of the same
 // names (defaults: the settings' own; --linear-tolerance is the relative residual of CG / PCR);
-// --self-collision 1 runs the scene's v3 self-collision pass after every step.
+// --self-collision 1 runs the scene's v3 self-collision pass after every step; --model-option sets a
+// yarn_woven key (docs/yarn_model.md), e.g. exact_hessian=true (repeatable).
 // For every size, one reference run with the linear tolerance --reference-tolerance (default 1e-10;
 // 0 = none) gives the accuracy figure: the largest node distance from it after the same steps. Then
 // one and two threads run interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time
@@ -63,6 +64,7 @@ std::string g_preconditioner;  // --preconditioner (empty: the solver's default)
 bool g_warm_start = false;     // --warm-start 1
 int g_smoothing_steps = -1;    // --smoothing-steps (-1: the solver's default)
 bool g_self_collision = false; // --self-collision 1: the scene's v3 pass after every step
+std::map<std::string, std::string> g_model_options;  // --model-option key=value (repeatable)
 
 DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt, Real until) {
   const Real L = 1e-3, side = (side_crossings - 1) * L;
@@ -73,7 +75,7 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   s.textile = t;
   s.spacing = L;
   s.hold = {HoldPoint{"", Vec2(0, side)}, HoldPoint{"", Vec2(side, side)}};
-  s.model = ClothModelSpec("yarn_woven");
+  s.model = ClothModelSpec("yarn_woven", g_model_options);
   s.settings.integrator = integrator;
   s.settings.policy = StepPolicy::kFixed;
   s.settings.dt = dt;
@@ -202,6 +204,14 @@ int main(int argc, char** argv) {
     else if (a == "--smoothing-steps") g_smoothing_steps = std::atoi(v.c_str());
     else if (a == "--self-collision") g_self_collision = std::atoi(v.c_str()) != 0;
     else if (a == "--reference-tolerance") reference_tolerance = std::atof(v.c_str());
+    else if (a == "--model-option") {
+      const auto eq = v.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        std::cerr << "yarn_step_bench: --model-option needs key=value\n";
+        return 2;
+      }
+      g_model_options[v.substr(0, eq)] = v.substr(eq + 1);
+    }
     else {
       std::cerr << "yarn_step_bench: unknown option " << a << "\n";
       return 2;

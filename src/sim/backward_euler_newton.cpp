@@ -123,10 +123,14 @@ class BackwardEulerNewton : public ImplicitEulerBase {
     return free_residual_.allFinite();
   }
 
-  // delta_ from A delta = b_ on the free DOFs (PCR, block-Jacobi).
+  // delta_ from A delta = b_ on the free DOFs (PCR with the configured preconditioner, SolverSettings).
   bool linearSolve(int k, StepOutcome* out) {
     const auto t_solve = Clock::now();
-    if (!cr_.setMatrix(system_, mask_)) {
+    ConjugateResidualPreconditioner preconditioner;
+    preconditioner.kind = solver_.preconditioner;
+    preconditioner.smoothing_steps = solver_.smoothing_steps;
+    preconditioner.smoothing_weight = solver_.smoothing_weight;
+    if (!cr_.setMatrix(system_, mask_, preconditioner)) {
       out->ok = false;
       out->failure = "singular diagonal block in the Newton system (iteration " + std::to_string(k) + ")";
       return false;

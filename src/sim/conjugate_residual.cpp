@@ -5,7 +5,7 @@
 #include <sstream>
 
 #include "textile_handling/sim/integrators.h"  // deterministicDot
-#include "block_jacobi.h"
+#include "system_preconditioner.h"
 
 namespace textile_handling {
 
@@ -14,7 +14,7 @@ struct ConjugateResidualSolver::Impl {
   std::vector<char> pinned;
   bool any_pinned = false;
   int block = 3;
-  BlockJacobi jacobi;
+  SystemPreconditioner preconditioner;
   VecX r, z, p, az, ap, q;
 
   // Zeroes the pinned nodes' entries.
@@ -29,12 +29,21 @@ struct ConjugateResidualSolver::Impl {
     a->multiply(in, out);
     filter(out);
   }
+  // New search direction from the current residual: z = P r, p = z, Ap = Az; returns rho = z^T A z.
+  Real restart() {
+    preconditioner.apply(r, z);
+    applyA(z, az);
+    p = z;
+    ap = az;
+    return deterministicDot(z, az);
+  }
 };
 
 ConjugateResidualSolver::ConjugateResidualSolver() : impl_(std::make_unique<Impl>()) {}
 ConjugateResidualSolver::~ConjugateResidualSolver() = default;
 
-bool ConjugateResidualSolver::setMatrix(const BlockSparseMatrix& a, const std::vector<char>& node_pinned) {
+bool ConjugateResidualSolver::setMatrix(const BlockSparseMatrix& a, const std::vector<char>& node_pinned,
+                                        const ConjugateResidualPreconditioner& preconditioner) {
   Impl& s = *impl_;
   const Index n = a.pattern().numNodes();
   s.a = &a;
@@ -42,7 +51,8 @@ bool ConjugateResidualSolver::setMatrix(const BlockSparseMatrix& a, const std::v
   s.pinned = node_pinned.empty() ? std::vector<char>(n, 0) : node_pinned;
   s.pinned.resize(n, 0);
   s.any_pinned = std::any_of(s.pinned.begin(), s.pinned.end(), [](char c) { return c != 0; });
-  return s.jacobi.update(a, s.pinned, BlockJacobi::Inverse::kPositiveDefinite);
+  return s.preconditioner.update(a, s.pinned, preconditioner.kind, preconditioner.smoothing_steps,
+                                 preconditioner.smoothing_weight, BlockJacobi::Inverse::kPositiveDefinite);
 }
 
 ConjugateResidualResult ConjugateResidualSolver::solve(const VecX& b, VecX& y, Real relative_tolerance,
@@ -64,15 +74,18 @@ ConjugateResidualResult ConjugateResidualSolver::solve(const VecX& b, VecX& y, R
     out.converged = true;
     return out;
   }
+  out.used_coarse_level = s.preconditioner.usesCoarseLevel();
   // z = P r, p = z, A p = A z; rho = z^T A z (the P-inner product <z, P A z>_P^-1).
-  s.jacobi.apply(s.r, s.z, 1.0, false);
-  s.applyA(s.z, s.az);
-  s.p = s.z;
-  s.ap = s.az;
-  Real rho = deterministicDot(s.z, s.az);
+  Real rho = s.restart();
   while (out.iterations < max_iterations) {
-    s.jacobi.apply(s.ap, s.q, 1.0, false);  // q = P A p
+    s.preconditioner.apply(s.ap, s.q);  // q = P A p
     const Real sigma = deterministicDot(s.ap, s.q);
+    if (!(sigma > 0) && s.preconditioner.dropSmoothing()) {
+      // The smoothed cycle is not positive definite for this A: continue with the additive form.
+      ++out.restarts;
+      rho = s.restart();
+      continue;
+    }
     if (!(sigma > 0) || !std::isfinite(rho) || rho == 0) {
       std::ostringstream m;
       m << "conjugate residual breakdown at iteration " << out.iterations << " (z^T A z = " << rho

@@ -14,6 +14,7 @@
 #include "block_jacobi.h"
 #include "implicit_euler_base.h"
 #include "sparse_ldlt.h"
+#include "system_preconditioner.h"
 
 namespace textile_handling {
 
@@ -105,149 +106,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Two-level preconditioner: block-Jacobi smoothing on the fine level plus an exact solve of the
-// Galerkin coarse system P^T A P, where P is the piecewise-constant (unsmoothed) aggregation
-// prolongator. Aggregates are built greedily from the block pattern alone (a root node and its
-// not yet aggregated neighbours), once per pattern and pinned set; the coarse pattern and its
-// fill-reducing ordering are therefore fixed, and only values change from step to step.
-class TwoLevel {
- public:
-  bool matches(const BlockPattern& p, const std::vector<char>& node_pinned) const {
-    return pattern_ == &p && num_blocks_ == p.numBlocks() && pinned_ == node_pinned;
-  }
-
-  void setup(const BlockPattern& p, const std::vector<char>& node_pinned) {
-    pattern_ = &p;
-    num_blocks_ = p.numBlocks();
-    pinned_ = node_pinned;
-    b_ = p.blockSize();
-    const Index n = p.numNodes();
-    const auto& rs = p.rowStart();
-    const auto& col = p.column();
-    agg_.assign(n, -1);
-    Index na = 0;
-    // Neighbour lists of the block pattern (the node itself included).
-    std::vector<std::vector<Index>> nb(n);
-    for (Index i = 0; i < n; ++i) nb[i].assign(col.begin() + rs[i], col.begin() + rs[i + 1]);
-    // Phase 1: a free node whose free neighbours are all unaggregated roots a new aggregate.
-    for (Index i = 0; i < n; ++i) {
-      if (node_pinned[i] || agg_[i] >= 0) continue;
-      bool free_nbhd = true;
-      for (Index j : nb[i])
-        if (!node_pinned[j] && agg_[j] >= 0) free_nbhd = false;
-      if (!free_nbhd) continue;
-      for (Index j : nb[i])
-        if (!node_pinned[j]) agg_[j] = na;
-      ++na;
-    }
-    // Phase 2: leftovers join the aggregate they share most couplings with (or start their own).
-    std::vector<Index> phase1 = agg_;
-    for (Index i = 0; i < n; ++i) {
-      if (node_pinned[i] || agg_[i] >= 0) continue;
-      Index best = -1, best_count = 0;
-      for (Index j0 : nb[i]) {
-        const Index a = phase1[j0];
-        if (a < 0) continue;
-        Index count = 0;
-        for (Index j1 : nb[i]) count += phase1[j1] == a;
-        if (count > best_count || (count == best_count && a < best)) {
-          best = a;
-          best_count = count;
-        }
-      }
-      agg_[i] = best >= 0 ? best : na++;
-    }
-    num_agg_ = na;
-    members_start_.assign(na + 1, 0);
-    for (Index i = 0; i < n; ++i)
-      if (agg_[i] >= 0) ++members_start_[agg_[i] + 1];
-    for (Index a = 0; a < na; ++a) members_start_[a + 1] += members_start_[a];
-    members_.assign(members_start_.back(), 0);
-    {
-      std::vector<Index> fill(members_start_.begin(), members_start_.end() - 1);
-      for (Index i = 0; i < n; ++i)
-        if (agg_[i] >= 0) members_[fill[agg_[i]]++] = i;
-    }
-    // Coarse pattern and the (fine slot -> coarse slot) lists, grouped by coarse row.
-    std::vector<std::pair<Index, Index>> couplings;
-    for (Index i = 0; i < n; ++i) {
-      if (agg_[i] < 0) continue;
-      for (Index k = rs[i]; k < rs[i + 1]; ++k) {
-        const Index j = col[k];
-        if (agg_[j] >= 0 && agg_[j] != agg_[i]) couplings.emplace_back(agg_[i], agg_[j]);
-      }
-    }
-    coarse_pattern_ = std::make_unique<BlockPattern>(na, b_, couplings);
-    coarse_ = BlockSparseMatrix(coarse_pattern_.get());
-    gather_start_.assign(na + 1, 0);
-    gather_.clear();
-    for (Index a = 0; a < na; ++a) {
-      for (Index m = members_start_[a]; m < members_start_[a + 1]; ++m) {
-        const Index i = members_[m];
-        for (Index k = rs[i]; k < rs[i + 1]; ++k) {
-          const Index j = col[k];
-          if (agg_[j] < 0) continue;
-          gather_.emplace_back(k, coarse_pattern_->find(a, agg_[j]));
-        }
-      }
-      gather_start_[a + 1] = static_cast<Index>(gather_.size());
-    }
-    solver_.setPattern(*coarse_pattern_);
-  }
-
-  // Assembles and factorises the coarse matrix P^T A P.
-  bool update(const BlockSparseMatrix& A) {
-    if (num_agg_ == 0) return false;
-    const int bb = b_ * b_;
-    const auto& rs = coarse_pattern_->rowStart();
-    const auto& fine = A.values();
-#pragma omp parallel for schedule(static)
-    for (Index a = 0; a < num_agg_; ++a) {
-      std::fill(coarse_.block(rs[a]), coarse_.block(rs[a + 1]), 0.0);
-      for (Index g = gather_start_[a]; g < gather_start_[a + 1]; ++g) {
-        const Real* src = fine.data() + static_cast<size_t>(gather_[g].first) * bb;
-        Real* dst = coarse_.block(gather_[g].second);
-        for (int e = 0; e < bb; ++e) dst[e] += src[e];
-      }
-    }
-    if (!solver_.factorize(coarse_, {})) return false;
-    return solver_.negativePivots() == 0;
-  }
-
-  // z += P Ac^-1 P^T r.
-  void addCoarseCorrection(const VecX& r, VecX& z) {
-    rc_.resize(static_cast<Index>(num_agg_) * b_);
-#pragma omp parallel for schedule(static)
-    for (Index a = 0; a < num_agg_; ++a) {
-      auto acc = rc_.segment(a * b_, b_);
-      acc.setZero();
-      for (Index m = members_start_[a]; m < members_start_[a + 1]; ++m) acc += r.segment(members_[m] * b_, b_);
-    }
-    solver_.solve(rc_, zc_);
-    const Index n = static_cast<Index>(agg_.size());
-#pragma omp parallel for schedule(static)
-    for (Index i = 0; i < n; ++i)
-      if (agg_[i] >= 0) z.segment(i * b_, b_) += zc_.segment(agg_[i] * b_, b_);
-  }
-
-  Index numAggregates() const { return num_agg_; }
-
- private:
-  const BlockPattern* pattern_ = nullptr;
-  Index num_blocks_ = 0;
-  std::vector<char> pinned_;
-  int b_ = 3;
-  std::vector<Index> agg_;
-  Index num_agg_ = 0;
-  std::vector<Index> members_start_, members_;
-  std::unique_ptr<BlockPattern> coarse_pattern_;
-  BlockSparseMatrix coarse_;
-  std::vector<Index> gather_start_;
-  std::vector<std::pair<Index, Index>> gather_;
-  BlockSparseLdlt solver_;
-  VecX rc_, zc_;
-};
-
 class SemiImplicitEuler : public ImplicitEulerBase {
  public:
   explicit SemiImplicitEuler(SolverSettings s) : ImplicitEulerBase(s) {}
@@ -335,49 +193,15 @@ class SemiImplicitEuler : public ImplicitEulerBase {
     system_.multiply(in, out);
     filter(out);
   }
-  // z = M^-1 r for the configured preconditioner.
-  void precondition(const VecX& r, VecX& z) {
-    if (!use_coarse_) {
-      jacobi_.apply(r, z, 1.0, false);
-      return;
-    }
-    const int nu = additive_only_ ? 0 : solver_.smoothing_steps;
-    const Real w = solver_.smoothing_weight;
-    if (nu <= 0) {  // additive: D^-1 r + P Ac^-1 P^T r
-      jacobi_.apply(r, z, 1.0, false);
-      two_level_.addCoarseCorrection(r, z);
-      return;
-    }
-    // Symmetric V(nu, nu) cycle with damped block-Jacobi smoothing.
-    jacobi_.apply(r, z, w, false);
-    for (int s = 1; s < nu; ++s) {
-      applyA(z, t_);
-      t_ = r - t_;
-      jacobi_.apply(t_, z, w, true);
-    }
-    applyA(z, t_);
-    t_ = r - t_;
-    two_level_.addCoarseCorrection(t_, z);
-    for (int s = 0; s < nu; ++s) {
-      applyA(z, t_);
-      t_ = r - t_;
-      jacobi_.apply(t_, z, w, true);
-    }
-  }
-
   bool solvePCG(const VecX& bf, Real h, VecX& y, StepOutcome* out) {
     const Index dofs = bf.size();
-    if (!jacobi_.update(system_, mask_)) {
+    // The coarse level needs a positive definite Galerkin matrix; when it is not (possible with an
+    // indefinite exact Jacobian), this step falls back to block-Jacobi, and CG decides.
+    if (!preconditioner_.update(system_, mask_, solver_.preconditioner, solver_.smoothing_steps,
+                                solver_.smoothing_weight, BlockJacobi::Inverse::kPlain)) {
       out->ok = false;
       out->failure = "singular diagonal block in implicit system";
       return false;
-    }
-    // The coarse level needs a positive definite Galerkin matrix; when it is not (possible with an
-    // indefinite exact Jacobian), this step falls back to block-Jacobi, and CG decides.
-    use_coarse_ = false;
-    if (solver_.preconditioner == PreconditionerKind::kTwoLevel) {
-      if (!two_level_.matches(system_.pattern(), mask_)) two_level_.setup(system_.pattern(), mask_);
-      use_coarse_ = two_level_.update(system_);
     }
     const Real bnorm = std::sqrt(deterministicDot(bf, bf));
     const Real stop = solver_.relative_tolerance * std::max(bnorm, 1e-300);
@@ -398,17 +222,15 @@ class SemiImplicitEuler : public ImplicitEulerBase {
     int it = 0;
     Real rnorm = std::sqrt(deterministicDot(r, r));
     bool converged = rnorm <= stop;
-    additive_only_ = false;
     if (!converged) {
-      precondition(r, z_);
+      preconditioner_.apply(r, z_);
       p_ = z_;
       Real rz = deterministicDot(r, z_);
       while (it < solver_.max_iterations) {
-        if (!(rz > 0) && use_coarse_ && !additive_only_ && solver_.smoothing_steps > 0) {
+        if (!(rz > 0) && preconditioner_.dropSmoothing()) {
           // The smoothed cycle is positive definite only if smoothing_weight * lambda_max(D^-1 A) < 2;
           // if it is not, restart the search directions with the additive two-level preconditioner.
-          additive_only_ = true;
-          precondition(r, z_);
+          preconditioner_.apply(r, z_);
           p_ = z_;
           rz = deterministicDot(r, z_);
         }
@@ -429,7 +251,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
           converged = true;
           break;
         }
-        precondition(r, z_);
+        preconditioner_.apply(r, z_);
         const Real rz_new = deterministicDot(r, z_);
         p_ = z_ + (rz_new / rz) * p_;
         rz = rz_new;
@@ -445,13 +267,10 @@ class SemiImplicitEuler : public ImplicitEulerBase {
   }
 
   std::vector<char> mask_;
-  bool use_coarse_ = false;
-  bool additive_only_ = false;
-  BlockJacobi jacobi_;
-  TwoLevel two_level_;
+  SystemPreconditioner preconditioner_;
   BlockSparseLdlt direct_;
   std::vector<char> dof_pinned_;
-  VecX Ap_, z_, p_, t_, prev_y_;
+  VecX Ap_, z_, p_, prev_y_;
   Real prev_h_ = 0;
 };
 

@@ -13,6 +13,15 @@
 
 namespace textile_handling {
 
+/// The rows one thread adds to in computeInParallelApplyByRows(): blocks of 64 consecutive rows dealt
+/// round-robin to the threads, so that the rows of any stretch of neighbouring stencils are shared
+/// among all threads (contiguous halves would leave one thread idle while a chunk touches the other's).
+struct RowShare {
+  Index thread = 0;
+  Index threads = 1;
+  bool owns(Index row) const { return threads == 1 || (row >> 6) % threads == thread; }
+};
+
 namespace ordered_parallel_detail {
 
 /// Splits [0, count) into chunks of `chunk` items; for each chunk, compute(i, local) fills the chunk's
@@ -42,22 +51,19 @@ void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&&
       });
 }
 
-/// As computeInParallelApplyInOrder(), but the adding is parallel too: every thread owns a range of
-/// rows [row_begin, row_end) of the `num_rows` (nodes) and calls apply(i, local, row_begin, row_end)
-/// for every i in increasing order, which must add only the entries of rows in its range. Each entry
-/// still receives its terms in item order, so the sums are those of the serial loop on any thread
-/// count.
+/// As computeInParallelApplyInOrder(), but the adding is parallel too: every thread owns a share of
+/// the rows (RowShare) and calls apply(i, local, share) for every i in increasing order, which must
+/// add only the entries of rows the share owns. Each entry still receives its terms in item order,
+/// so the sums are those of the serial loop on any thread count.
 template <class Local, class Compute, class ApplyRows>
-void computeInParallelApplyByRows(std::size_t count, Index num_rows, Compute&& compute, ApplyRows&& apply,
-                                  std::size_t chunk = 2048) {
+void computeInParallelApplyByRows(std::size_t count, Compute&& compute, ApplyRows&& apply, std::size_t chunk = 2048) {
   ordered_parallel_detail::forEachComputedChunk<Local>(
       count, chunk, compute, [&](std::size_t start, std::ptrdiff_t n, const std::vector<Local>& buffer) {
 #pragma omp parallel if (n > 64)
         {
-          const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
-          const Index lo = num_rows * t / threads, hi = num_rows * (t + 1) / threads;
+          const RowShare share{omp_get_thread_num(), omp_get_num_threads()};
           for (std::ptrdiff_t k = 0; k < n; ++k)
-            apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)], lo, hi);
+            apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)], share);
         }
       });
 }

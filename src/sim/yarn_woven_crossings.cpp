@@ -130,10 +130,10 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
                                        BlockSparseMatrix* dfdv, bool clamped, int terms, Real scale) const {
   const bool friction = options_.crossing.friction && (terms & kFrictionTerms);
   const bool conservative = terms & kConservativeTerms;
-  // Adds factor m into the position blocks of the pair's rows whose node lies in [lo, hi).
-  auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor, Index lo, Index hi) {
+  // Adds factor m into the position blocks of the pair's rows that `rows` owns.
+  auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor, const RowShare& rows) {
     for (int a = 0; a < 3; ++a) {
-      if (p.node[static_cast<std::size_t>(a)] < lo || p.node[static_cast<std::size_t>(a)] >= hi) continue;
+      if (!rows.owns(p.node[static_cast<std::size_t>(a)])) continue;
       for (int b = 0; b < 3; ++b) {
         Real* blk = dfdx->block(p.slot[static_cast<std::size_t>(3 * a + b)]);
         for (int r = 0; r < 3; ++r)
@@ -141,10 +141,10 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
       }
     }
   };
-  auto addForce = [&](const ShearPair& p, const yarn::CrossingVector& g, Real factor, Index lo, Index hi) {
+  auto addForce = [&](const ShearPair& p, const yarn::CrossingVector& g, Real factor, const RowShare& rows) {
     for (int a = 0; a < 3; ++a) {
       const Index node = p.node[static_cast<std::size_t>(a)];
-      if (node >= lo && node < hi) f->segment<3>(kB * node) += factor * g.segment<3>(3 * a);
+      if (rows.owns(node)) f->segment<3>(kB * node) += factor * g.segment<3>(3 * a);
     }
   };
   // The kernels of a pair run in parallel, and so do their sums, by rows, in pair order (ordered_parallel.h).
@@ -155,7 +155,7 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
   };
   const bool with_f = conservative && f, with_dfdx = conservative && dfdx;
   computeInParallelApplyByRows<PairTerms>(
-      conservative || friction ? shear_pairs_.size() : 0, numNodes(),
+      conservative || friction ? shear_pairs_.size() : 0,
       [&](std::size_t k, PairTerms& t) {
         const ShearPair& p = shear_pairs_[k];
         if (p.torn) return;
@@ -166,14 +166,14 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
         if (with_dfdx) t.hessian = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
         if (friction) t.friction = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, clamped);
       },
-      [&](std::size_t k, const PairTerms& t, Index lo, Index hi) {
+      [&](std::size_t k, const PairTerms& t, const RowShare& rows) {
         const ShearPair& p = shear_pairs_[k];
         if (p.torn) return;
-        if (with_f && t.gradient.allFinite()) addForce(p, t.gradient, -1, lo, hi);
-        if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale, lo, hi);
+        if (with_f && t.gradient.allFinite()) addForce(p, t.gradient, -1, rows);
+        if (with_dfdx && t.hessian.allFinite()) addPositions(p, t.hessian, -scale, rows);
         if (!friction || !t.friction.force.allFinite() || !t.friction.jacobian.allFinite()) return;
-        if (f) addForce(p, t.friction.force, 1, lo, hi);
-        if (dfdx) addPositions(p, t.friction.jacobian, scale, lo, hi);
+        if (f) addForce(p, t.friction.force, 1, rows);
+        if (dfdx) addPositions(p, t.friction.jacobian, scale, rows);
       });
   for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
     const ContactPair& p = contacts_[k];
@@ -219,6 +219,7 @@ void YarnWovenModel::acceptStep(const VecX& x, VecX& v) {
   tearOverloadedSegments(q, v);
   updateCompression(q);
   acceptSelfContacts(x);
+  damping_stale_ = true;
 }
 
 std::vector<Real> YarnWovenModel::internalState() const {
@@ -263,6 +264,7 @@ bool YarnWovenModel::setInternalState(const std::vector<Real>& state) {
   self_contacts_detected_ = detected;
   tears_.torn = std::move(torn);
   applyTornSegments();
+  damping_stale_ = true;
   return true;
 }
 

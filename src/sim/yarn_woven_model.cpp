@@ -158,6 +158,7 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
       for (int i = 0; i < s.nodes; ++i)
         for (int j = 0; j < s.nodes; ++j) s.slot[static_cast<std::size_t>(i * s.nodes + j)] = pattern_.find(s.node[i], s.node[j]);
   stiffness_ = BlockSparseMatrix(&pattern_);
+  if (fabric_.damping_stiffness_s > 0) damping_stiffness_ = BlockSparseMatrix(&pattern_);
   buildCrossingTerms(around);
 
   // Lumped estimate: half of each segment's rest mass to each of its nodes, on all five DOFs.
@@ -175,11 +176,11 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
 }
 
 template <int Nodes, class Matrix>
-void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, Index row_begin,
-                                   Index row_end) const {
+void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a,
+                                   const RowShare& rows) const {
   for (int r = 0; r < 4 * Nodes; ++r) {
     const Index row_node = s.node[static_cast<std::size_t>(r / 4)];
-    if (row_node < row_begin || row_node >= row_end || held_[s.dof[static_cast<std::size_t>(r)]]) continue;
+    if (!rows.owns(row_node) || held_[s.dof[static_cast<std::size_t>(r)]]) continue;
     const int lr = static_cast<int>(s.dof[static_cast<std::size_t>(r)] % kB);  // node-local coordinate
     for (int c = 0; c < 4 * Nodes; ++c) {
       if (m(r, c) == 0 || held_[s.dof[static_cast<std::size_t>(c)]]) continue;
@@ -191,26 +192,25 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
 
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
-  const Index n = numNodes();
   computeInParallelApplyByRows<yarn::SegmentMatrix>(
-      segments_.size(), n,
+      segments_.size(),
       [&](std::size_t k, yarn::SegmentMatrix& h) {
         if (segments_[k].torn) return;
         const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
         h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
       },
-      [&](std::size_t k, const yarn::SegmentMatrix& h, Index lo, Index hi) {
-        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a, lo, hi);
+      [&](std::size_t k, const yarn::SegmentMatrix& h, const RowShare& rows) {
+        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a, rows);
       });
   computeInParallelApplyByRows<yarn::BendMatrix>(
-      bends_.size(), n,
+      bends_.size(),
       [&](std::size_t k, yarn::BendMatrix& h) {
         if (bends_[k].torn) return;
         const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
         h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
       },
-      [&](std::size_t k, const yarn::BendMatrix& h, Index lo, Index hi) {
-        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a, lo, hi);
+      [&](std::size_t k, const yarn::BendMatrix& h, const RowShare& rows) {
+        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a, rows);
       });
 }
 
@@ -235,12 +235,10 @@ Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const
 void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
   if (!options_.gravity) return;
   const yarn::SegmentMatrix h = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
-  const Index n = numNodes();
 #pragma omp parallel
   {  // by rows, every row in segment order (ordered_parallel.h)
-    const Index threads = omp_get_num_threads(), t = omp_get_thread_num();
-    const Index lo = n * t / threads, hi = n * (t + 1) / threads;
-    for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a, lo, hi);
+    const RowShare rows{omp_get_thread_num(), omp_get_num_threads()};
+    for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a, rows);
   }
 }
 
@@ -286,29 +284,37 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   if (!self_contacts_detected_) detectSelfContacts(x);  // lagged like F_n
   addSelfContactForces(x, v, &f, nullptr, nullptr);
 
-  // The clamped Hessian K of the elastic terms (stretch, bending, shear, contact), assembled once: it is
-  // the stiffness of the Rayleigh damping F_d = -(alpha M(x) + beta K(x)) v (notes 2.5) and, with
-  // gravity's Hessian, minus the clamped df/dx.
+  // The clamped Hessian K of the elastic terms (stretch, bending, shear, contact): minus the clamped
+  // df/dx (with gravity's Hessian), and the stiffness of the Rayleigh damping
+  // F_d = -(alpha M + beta K) v (notes 2.5). The damping's K and M are those of the step's start state
+  // x_n, held over the step: F_d is then linear in v and independent of x within a step, so Newton's
+  // Jacobian is exact for it (K(x) is only piecewise smooth, being clamped, and its derivative is not
+  // assembled). The semi-implicit step, which evaluates forces at x_n only, is unchanged by this.
   const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
-  const bool need_k = beta > 0 || (jac && clamped);
-  if (need_k) {
-    scaleInto(stiffness_, 0, stiffness_);
-    assembleHessian(q, true, 1, stiffness_);
-    addCrossingForces(q, v, nullptr, &stiffness_, nullptr, true, kConservativeTerms, -1);
+  const bool refresh_damping = damping_stale_;
+  if (refresh_damping) damping_positions_ = x;
+  damping_stale_ = false;
+  const BlockSparseMatrix* k_now = nullptr;  // K(x), if assembled in this call
+  if ((beta > 0 && refresh_damping) || (jac && clamped)) {
+    BlockSparseMatrix& target = beta > 0 && refresh_damping ? damping_stiffness_ : stiffness_;
+    scaleInto(target, 0, target);
+    assembleHessian(q, true, 1, target);
+    addCrossingForces(q, v, nullptr, &target, nullptr, true, kConservativeTerms, -1);
+    k_now = &target;
   }
-  // Damping as two products (beta K v + alpha M(x) v): no third matrix is formed.
+  // Damping as two products (beta K v + alpha M v): no third matrix is formed.
   if (beta > 0) {
-    stiffness_.multiply(v, damping_);
+    damping_stiffness_.multiply(v, damping_);
     f -= beta * damping_;
   }
   if (alpha > 0) {
-    multiplyMass(x, v, damping_);
+    multiplyMass(damping_positions_, v, damping_);
     f -= alpha * damping_;
   }
   for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
     if (clamped) {
-      scaleInto(stiffness_, -1, jac->dfdx);
+      scaleInto(*k_now, -1, jac->dfdx);
       addGravityHessian(-1, jac->dfdx);
     } else {
       jac->dfdx.setZero();
@@ -316,9 +322,10 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
       addGravityHessian(-1, jac->dfdx);
       addCrossingForces(q, v, nullptr, &jac->dfdx, nullptr, false, kConservativeTerms, 1);
     }
-    // df/dv = -(alpha M(x) + beta K).
-    scaleInto(stiffness_, beta > 0 ? -beta : 0, jac->dfdv);
-    if (alpha > 0) addMassMatrix(x, -alpha, jac->dfdv);
+    // df/dv = -(alpha M(x_n) + beta K(x_n)).
+    if (beta > 0) scaleInto(damping_stiffness_, -beta, jac->dfdv);
+    else jac->dfdv.setZero();
+    if (alpha > 0) addMassMatrix(damping_positions_, -alpha, jac->dfdv);
     // The held DOFs' mass entries are not damping: a held DOF has no force.
     for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
     addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
@@ -369,13 +376,13 @@ std::vector<DrawnYarn> YarnWovenModel::drawnYarns() const {
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
   computeInParallelApplyByRows<yarn::SegmentMatrix>(
-      segments_.size(), numNodes(),
+      segments_.size(),
       [&](std::size_t k, yarn::SegmentMatrix& m) {
         if (segments_[k].torn) return;
         m = yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k])), fabric_.linear_density_kg_per_m);
       },
-      [&](std::size_t k, const yarn::SegmentMatrix& m, Index lo, Index hi) {
-        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a, lo, hi);
+      [&](std::size_t k, const yarn::SegmentMatrix& m, const RowShare& rows) {
+        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a, rows);
       });
   addTornSegmentMass(q, scale, a);
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];

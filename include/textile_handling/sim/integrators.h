@@ -45,7 +45,7 @@ struct PinnedNodes {
 };
 
 /// How the semi-implicit integrator solves its sparse system (backward_euler_newton always uses
-/// conjugate residuals with block-Jacobi; it takes the tolerance and iteration caps of this struct).
+/// conjugate residuals; it takes the preconditioner, tolerance and iteration caps of this struct).
 enum class LinearSolverKind {
   kCG,      ///< preconditioned conjugate gradients ("cg")
   kDirect,  ///< sparse LDL^T factorisation (Eigen, AMD ordering) of the full system every step ("direct");
@@ -55,7 +55,8 @@ std::string toString(LinearSolverKind k);
 /// Parses "cg", "direct"; throws std::invalid_argument otherwise.
 LinearSolverKind linearSolverFromString(const std::string& s);
 
-/// Preconditioner of the CG solver.
+/// Preconditioner of the CG solver (semi_implicit) and of the conjugate-residual solver
+/// (backward_euler_newton).
 enum class PreconditionerKind {
   kBlockJacobi,  ///< inverse diagonal blocks ("block_jacobi")
   /// Two-level ("two_level"): damped block-Jacobi smoothing plus an exact (LDL^T) solve of the

@@ -26,6 +26,8 @@
 
 namespace textile_handling {
 
+struct RowShare;  // src/sim/ordered_parallel.h
+
 /// The constants of the crossing terms the source leaves open (notes section 9.1, 9.5), as factors of
 /// the fabric's own stiffnesses so that they keep their meaning for any yarn and bundle size.
 /// docs/yarn_model.md, "Crossing terms in the model".
@@ -238,9 +240,8 @@ class YarnWovenModel : public ClothModel {
   template <int Nodes>
   static std::array<std::size_t, 4 * Nodes> dofsOf(const Stencil& s);
   template <int Nodes, class Matrix>
-  /// Adds scale m into a's blocks of the stencil's free DOFs, rows of nodes in [row_begin, row_end) only.
-  void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, Index row_begin = 0,
-                     Index row_end = std::numeric_limits<Index>::max()) const;
+  /// Adds scale m into a's blocks of the stencil's free DOFs, in the rows of nodes `rows` owns only.
+  void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, const RowShare& rows) const;
 
   YarnSheet sheet_;
   WovenFabric fabric_;
@@ -262,7 +263,12 @@ class YarnWovenModel : public ClothModel {
   VecX slide_anchor_;                  ///< per DOF (sliding DOFs of crossings used), as displacements
   std::vector<Real> angle_anchor_;     ///< per shear pair [rad]
   TearRecord tears_;
-  BlockSparseMatrix stiffness_;  // the clamped Hessian of the elastic terms (damping and clamped df/dx)
+  BlockSparseMatrix stiffness_;  // the clamped Hessian K(x) of the elastic terms (clamped df/dx)
+  // Rayleigh damping held over a step: K and M at the first state computeForces() sees after
+  // construction, acceptStep() or setInternalState() - the step's start state.
+  BlockSparseMatrix damping_stiffness_;  // K(x_n); allocated only when beta > 0
+  VecX damping_positions_;               // x_n, the positions of the damping's mass matrix
+  bool damping_stale_ = true;
   VecX damping_;                 // K v and M v of the damping force, reused
   // Penalty self-contact: triangles, constants, the contacts of the last accepted step.
   yarn::YarnTriangles triangles_;
