@@ -19,7 +19,9 @@
 // one and two threads run interleaved (1, 2, 1, 2, ...) --repeats times; each row gives the wall time
 // per step and per crossing-step, the split into assembly (forces, Jacobians and the system), solve
 // and collisions per step, the forces alone and the Jacobians' extra time per evaluation (median of 3
-// at the final state), solver and Newton iterations per step, and the distance from the reference.
+// at the final state; the forces alone reuse the Rayleigh damping's stiffness matrix of the state's
+// first evaluation, so the clamped stiffness matrix is part of the Jacobians' time), solver and Newton
+// iterations per step, and the distance from the reference.
 // Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each fixed step
 // of --stable-dts; stable = no divergence.
 //

@@ -1,4 +1,5 @@
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/obstacle_penalty.h"
 
 #include <yaml-cpp/yaml.h>
 
@@ -167,7 +168,18 @@ DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
   scene.model = std::move(model);
 
   // Collision handling (the pass constructors validate the obstacles and options).
-  if (!spec.obstacles.empty()) {
+  if (!spec.obstacles.empty() && spec.obstacles.method == ObstacleMethod::kPenalty) {
+    ObstaclePenaltyOptions o;
+    o.thickness = spec.obstacles.options.contact_distance;
+    o.friction = spec.obstacles.options.friction;
+    o.stiffness_factor = spec.obstacles.penalty_stiffness_factor;
+    o.damping_ratio = spec.obstacles.penalty_damping_ratio;
+    o.stick_speed = spec.obstacles.penalty_stick_speed;
+    if (const std::string e = obstaclePenaltyErrors(o); !e.empty())
+      throw SceneError("obstacles (method penalty): " + e + " (obstacles.contact_distance_m must be > 0)");
+    scene.model = std::make_unique<ObstaclePenaltyModel>(std::move(scene.model), pinned, spec.obstacles.planes,
+                                                         spec.obstacles.boxes, spec.obstacles.spheres, o);
+  } else if (!spec.obstacles.empty()) {
     scene.obstacle_pass = std::make_unique<ObstaclePass>(n, scene.pins, spec.obstacles.options);
     for (const auto& p : spec.obstacles.planes) scene.obstacle_pass->addPlane(p);
     for (const auto& b : spec.obstacles.boxes) scene.obstacle_pass->addBox(b);
@@ -556,7 +568,26 @@ BoxObstacle parseBox(const YAML::Node& b) {
 }
 
 void parseObstacles(const YAML::Node& ob, ObstacleSpec& o) {
-  checkKeys(ob, "obstacles", {"contact_distance_m", "friction", "planes", "boxes", "spheres"});
+  checkKeys(ob, "obstacles", {"method", "contact_distance_m", "friction", "penalty_stiffness_factor",
+                              "penalty_damping_ratio", "penalty_stick_speed_m_per_s", "planes", "boxes", "spheres"});
+  if (ob["method"]) {
+    const std::string m = getString(ob["method"], "obstacles.method");
+    if (m == "position") o.method = ObstacleMethod::kPosition;
+    else if (m == "penalty") o.method = ObstacleMethod::kPenalty;
+    else fail("'obstacles.method' must be position or penalty, not '" + m + "'");
+  }
+  if (ob["penalty_stiffness_factor"]) {
+    o.penalty_stiffness_factor = getReal(ob["penalty_stiffness_factor"], "obstacles.penalty_stiffness_factor");
+    if (!(o.penalty_stiffness_factor > 0)) fail("'obstacles.penalty_stiffness_factor' must be > 0");
+  }
+  if (ob["penalty_damping_ratio"]) {
+    o.penalty_damping_ratio = getReal(ob["penalty_damping_ratio"], "obstacles.penalty_damping_ratio");
+    if (!(o.penalty_damping_ratio >= 0)) fail("'obstacles.penalty_damping_ratio' must be >= 0");
+  }
+  if (ob["penalty_stick_speed_m_per_s"]) {
+    o.penalty_stick_speed = getReal(ob["penalty_stick_speed_m_per_s"], "obstacles.penalty_stick_speed_m_per_s");
+    if (!(o.penalty_stick_speed > 0)) fail("'obstacles.penalty_stick_speed_m_per_s' must be > 0");
+  }
   if (ob["contact_distance_m"]) {
     o.options.contact_distance = getReal(ob["contact_distance_m"], "obstacles.contact_distance_m");
     if (!(o.options.contact_distance >= 0)) fail("'obstacles.contact_distance_m' must be >= 0");

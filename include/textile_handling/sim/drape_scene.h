@@ -26,8 +26,16 @@ struct HoldPoint {
 };
 
 /// Obstacles of a scene, in world coordinates (docs/collision.md).
+/// How a scene's obstacles act: the post-step position pass ("position", ObstaclePass) or penalty
+/// forces inside the model ("penalty", ObstaclePenaltyModel; docs/collision.md).
+enum class ObstacleMethod { kPosition, kPenalty };
+
 struct ObstacleSpec {
-  ObstacleOptions options;
+  ObstacleMethod method = ObstacleMethod::kPosition;
+  ObstacleOptions options;  ///< contact distance (the penalty's thickness) and friction, both methods
+  Real penalty_stiffness_factor = 1000;  ///< ObstaclePenaltyOptions::stiffness_factor
+  Real penalty_damping_ratio = 1;        ///< ObstaclePenaltyOptions::damping_ratio
+  Real penalty_stick_speed = 1e-4;       ///< ObstaclePenaltyOptions::stick_speed [m/s]
   std::vector<PlaneObstacle> planes;
   std::vector<BoxObstacle> boxes;
   std::vector<SphereObstacle> spheres;
