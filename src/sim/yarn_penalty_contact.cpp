@@ -268,33 +268,45 @@ std::vector<PenaltyContact> detectPenaltyContacts(const YarnTriangles& tris, std
   }
   geom::SpatialHash hash;
   if (!brute_force) hash.build(boxes, options.cell > 0 ? options.cell : extent / static_cast<Real>(T));
-  geom::SpatialHash::Query query(hash);
-  std::vector<Candidate> cand;
-  auto test = [&](std::size_t node, std::size_t t) {
-    if (tris.excluded(node, t)) return;
-    const TriangleProjection pr = projectOnTriangle(packPenaltyStencil(x, node, tris.triangles[t]));
-    if (!pr.valid || !(std::abs(pr.distance) < gamma)) return;
-    for (Real w : pr.weight)
-      if (!(w >= 0)) return;
-    cand.push_back({std::abs(pr.distance), t, pr});
-  };
-  const PenaltyContact* prev = previous.data();
-  const PenaltyContact* prev_end = previous.data() + previous.size();
-  for (std::size_t node = 0; node < crossings; ++node) {
-    cand.clear();
-    const Vec3 xn = x.segment<3>(static_cast<Eigen::Index>(kStride * node));
-    if (brute_force) {
-      for (std::size_t t = 0; t < T; ++t) test(node, t);
-    } else {
-      geom::Aabb q;
-      q.extend(xn);
-      query.forEachOverlap(q, [&](int t) { test(node, static_cast<std::size_t>(t)); });
+  // Crossings are independent: fixed chunks of them are detected on all threads, each with its own
+  // query and list, and the lists are joined in chunk order, so the result is the serial one.
+  constexpr std::size_t kChunks = 64;
+  std::vector<std::vector<PenaltyContact>> found(kChunks);
+#pragma omp parallel for schedule(dynamic, 1) if (crossings >= 4096)
+  for (std::ptrdiff_t c = 0; c < static_cast<std::ptrdiff_t>(kChunks); ++c) {
+    const std::size_t lo = crossings * static_cast<std::size_t>(c) / kChunks;
+    const std::size_t hi = crossings * static_cast<std::size_t>(c + 1) / kChunks;
+    geom::SpatialHash::Query query(hash);
+    std::vector<Candidate> cand;
+    auto test = [&](std::size_t node, std::size_t t) {
+      if (tris.excluded(node, t)) return;
+      const TriangleProjection pr = projectOnTriangle(packPenaltyStencil(x, node, tris.triangles[t]));
+      if (!pr.valid || !(std::abs(pr.distance) < gamma)) return;
+      for (Real w : pr.weight)
+        if (!(w >= 0)) return;
+      cand.push_back({std::abs(pr.distance), t, pr});
+    };
+    // The previous contacts are sorted by node: this chunk's start among them.
+    const PenaltyContact* prev = std::lower_bound(previous.data(), previous.data() + previous.size(), lo,
+                                                  [](const PenaltyContact& p, std::size_t n) { return p.node < n; });
+    const PenaltyContact* prev_end = previous.data() + previous.size();
+    for (std::size_t node = lo; node < hi; ++node) {
+      cand.clear();
+      const Vec3 xn = x.segment<3>(static_cast<Eigen::Index>(kStride * node));
+      if (brute_force) {
+        for (std::size_t t = 0; t < T; ++t) test(node, t);
+      } else {
+        geom::Aabb q;
+        q.extend(xn);
+        query.forEachOverlap(q, [&](int t) { test(node, static_cast<std::size_t>(t)); });
+      }
+      while (prev != prev_end && prev->node < node) ++prev;
+      const PenaltyContact* p_end = prev;
+      while (p_end != prev_end && p_end->node == node) ++p_end;
+      if (!cand.empty()) keepContacts(tris, node, cand, prev, p_end, found[static_cast<std::size_t>(c)]);
     }
-    while (prev != prev_end && prev->node < node) ++prev;
-    const PenaltyContact* p_end = prev;
-    while (p_end != prev_end && p_end->node == node) ++p_end;
-    if (!cand.empty()) keepContacts(tris, node, cand, prev, p_end, out);
   }
+  for (auto& part : found) out.insert(out.end(), part.begin(), part.end());
   return out;
 }
 

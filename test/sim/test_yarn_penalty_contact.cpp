@@ -5,6 +5,8 @@
 // docs/yarn_model.md, "Collisions".
 #include "yarn_test_support.h"  // first: see there
 
+#include "../test_support.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -276,6 +278,39 @@ TEST(YarnPenaltyContact, HashedBroadPhaseFindsTheContactsOfAllPairs) {
   }
   EXPECT_GT(total, 20u);
   std::printf("[          ] %zu contacts over 10 crumpled states\n", total);
+}
+
+TEST(YarnPenaltyContact, DetectionIsTheSameOnOneAndTwoThreads) {
+  // 70 x 70 crossings (over the 4 096 from which detection runs on all threads), crumpled as above;
+  // the second detection carries sides and anchors over from the first.
+  const std::vector<Vec2> square = {Vec2(0, 0), Vec2(0.0695, 0), Vec2(0.0695, 0.0695), Vec2(0, 0.0695)};
+  const YarnGrid g = layYarnGrid(square, WovenFabric{});
+  ASSERT_GE(g.crossings.size(), 4096u);
+  const yarn::YarnTriangles t = yarn::yarnTriangles(g);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<Real> u(-1, 1);
+  VecX x = flatState(g);
+  for (std::size_t k = 0; k < g.nodeCount(); ++k) {
+    const Eigen::Index i = 5 * static_cast<Eigen::Index>(k);
+    x.segment<2>(i) = 0.4 * x.segment<2>(i) + 3e-4 * Vec2(u(rng), u(rng));
+    x[i + 2] = 1.5e-3 * u(rng);
+  }
+  VecX moved = x;
+  for (Eigen::Index i = 0; i < moved.size(); i += 5) moved[i + 2] += 2e-4 * u(rng);
+  yarn::PenaltyDetection d;
+  d.gamma = kGamma;
+  auto detect = [&](int threads) {
+    test_support::ThreadScope scope(threads);
+    const auto first = yarn::detectPenaltyContacts(t, g.crossings.size(), x, d, {});
+    return std::make_pair(first, yarn::detectPenaltyContacts(t, g.crossings.size(), moved, d, first));
+  };
+  const auto one = detect(1), two = detect(2);
+  EXPECT_GT(one.first.size(), 100u);
+  EXPECT_TRUE(sameContacts(one.first, two.first));
+  EXPECT_TRUE(sameContacts(one.second, two.second));
+  EXPECT_TRUE(sameContacts(one.first, yarn::detectPenaltyContacts(t, g.crossings.size(), x, d, {}, true)));
+  std::printf("[          ] %zu and %zu contacts on %zu crossings\n", one.first.size(), one.second.size(),
+              g.crossings.size());
 }
 
 // ---- In the model ---------------------------------------------------------------------------------

@@ -140,8 +140,10 @@ struct PenaltyDetection {
 /// six), so two layers squeezing a node are two contacts. The side and the anchor carry over from
 /// `previous` when the node was in contact with the same triangle or with one sharing a vertex with it
 /// (so a node pushed past a plane within a step is pushed back, not through); else side = sign(d)
-/// (+1 for d = 0) and the anchor is the projection. Sorted by (node, triangle). `brute_force` tests every
-/// pair instead of using the hash (the tests' reference).
+/// (+1 for d = 0) and the anchor is the projection. Sorted by (node, triangle); `previous` must be too.
+/// `brute_force` tests every pair instead of using the hash (the tests' reference). From 4 096 crossings
+/// on, fixed chunks of crossings are detected on all OpenMP threads and joined in order: the same list
+/// for every thread count.
 std::vector<PenaltyContact> detectPenaltyContacts(const YarnTriangles& tris, std::size_t crossings, const VecX& x,
                                                   const PenaltyDetection& options,
                                                   const std::vector<PenaltyContact>& previous, bool brute_force = false);
