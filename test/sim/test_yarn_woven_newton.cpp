@@ -5,11 +5,13 @@
 //  - a sheet of single yarns at 1 yarn/mm hung from two corners converges in at most three Newton
 //    iterations per 1 ms step with either preconditioner of the conjugate-residual solver (the
 //    two-level one in fewer PCR iterations), and lands where the semi-implicit (linearised) step does
-//    to within a small fraction of the motion.
+//    to within a small fraction of the motion;
+//  - a Newton run saved between steps resumes bitwise.
 #include "yarn_test_support.h"  // first: see there
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <random>
 #include <string>
 
@@ -122,6 +124,33 @@ TEST(YarnWovenNewton, HangingSheetConvergesInFewNewtonIterationsWithEitherPrecon
             << two_level.solver_iterations << " / " << jacobi.solver_iterations << "; motion " << motion
             << " m, preconditioners differ by " << preconditioners / motion << ", semi-implicit by " << methods / motion
             << " of it\n";
+}
+
+TEST(YarnWovenNewton, ASavedNewtonRunResumesBitwise) {
+  // The held damping is derived from the state a step starts from, so a run saved between steps and
+  // resumed in a fresh model continues exactly as the uninterrupted one.
+  ThreadScope threads(1);
+  const DrapeSceneSpec s = yarnSheet(12, IntegratorType::kBackwardEulerNewton, 1e-3, 1.0);
+  DrapeScene whole_scene = buildDrapeScene(s);
+  DrapeSimulation whole(*whole_scene.model, whole_scene.pins, s.settings, whole_scene.x0, whole_scene.v0);
+  const RunResult all = whole.run(0.0195);
+  ASSERT_FALSE(all.diverged) << all.divergence_reason;
+  EXPECT_EQ(all.steps, 20);
+  EXPECT_GT(all.newton_iterations, all.steps);
+  DrapeScene scene = buildDrapeScene(s);
+  DrapeSimulation first(*scene.model, scene.pins, s.settings, scene.x0, scene.v0);
+  first.run(0.0095);
+  const std::string path = test_support::freshTempPath("yarn_woven_newton", "state.txt");
+  first.save(path);
+  DrapeScene scene2 = buildDrapeScene(s);
+  DrapeSimulation second(*scene2.model, scene2.pins, s.settings, scene2.x0, scene2.v0);
+  // A force evaluation at the start state before the load must not leave its damping behind.
+  VecX f;
+  scene2.model->computeForces(scene2.x0, scene2.v0, f, nullptr);
+  second.load(path);
+  second.run(0.0195);
+  EXPECT_TRUE(second.state() == whole.state());
+  std::remove(path.c_str());
 }
 
 }  // namespace
