@@ -251,20 +251,25 @@ bool sameContacts(const std::vector<yarn::PenaltyContact>& a, const std::vector<
   return true;
 }
 
+// Crumpled: the flat grid squeezed to 40 % in x and y with random heights of +-1.5 mm, so layers overlap.
+VecX crumpledState(const YarnGrid& g, unsigned seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<Real> u(-1, 1);
+  VecX x = flatState(g);
+  for (std::size_t k = 0; k < g.nodeCount(); ++k) {
+    const Eigen::Index i = 5 * static_cast<Eigen::Index>(k);
+    x.segment<2>(i) = 0.4 * x.segment<2>(i) + 3e-4 * Vec2(u(rng), u(rng));
+    x[i + 2] = 1.5e-3 * u(rng);
+  }
+  return x;
+}
+
 TEST(YarnPenaltyContact, HashedBroadPhaseFindsTheContactsOfAllPairs) {
   const YarnGrid g = patchGrid();
   const yarn::YarnTriangles t = yarn::yarnTriangles(g);
   std::size_t total = 0;
   for (unsigned seed = 0; seed < 5; ++seed) {
-    // Crumpled: the flat patch squeezed to 40 % in x and y with random heights of +-1.5 mm, so layers overlap.
-    std::mt19937 rng(seed);
-    std::uniform_real_distribution<Real> u(-1, 1);
-    VecX x = flatState(g);
-    for (std::size_t k = 0; k < g.nodeCount(); ++k) {
-      const Eigen::Index i = 5 * static_cast<Eigen::Index>(k);
-      x.segment<2>(i) = 0.4 * x.segment<2>(i) + 3e-4 * Vec2(u(rng), u(rng));
-      x[i + 2] = 1.5e-3 * u(rng);
-    }
+    const VecX x = crumpledState(g, seed);
     for (Real gamma : {kGamma, 0.3 * kGamma}) {
       yarn::PenaltyDetection d;
       d.gamma = gamma;
@@ -287,14 +292,9 @@ TEST(YarnPenaltyContact, DetectionIsTheSameOnOneAndTwoThreads) {
   const YarnGrid g = layYarnGrid(square, WovenFabric{});
   ASSERT_GE(g.crossings.size(), 4096u);
   const yarn::YarnTriangles t = yarn::yarnTriangles(g);
-  std::mt19937 rng(3);
+  const VecX x = crumpledState(g, 3);
+  std::mt19937 rng(4);
   std::uniform_real_distribution<Real> u(-1, 1);
-  VecX x = flatState(g);
-  for (std::size_t k = 0; k < g.nodeCount(); ++k) {
-    const Eigen::Index i = 5 * static_cast<Eigen::Index>(k);
-    x.segment<2>(i) = 0.4 * x.segment<2>(i) + 3e-4 * Vec2(u(rng), u(rng));
-    x[i + 2] = 1.5e-3 * u(rng);
-  }
   VecX moved = x;
   for (Eigen::Index i = 0; i < moved.size(); i += 5) moved[i + 2] += 2e-4 * u(rng);
   yarn::PenaltyDetection d;
