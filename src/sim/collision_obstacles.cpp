@@ -34,23 +34,36 @@ ObstaclePass::ObstaclePass(std::vector<char> pinned_mask, ObstacleOptions option
 ObstaclePass::ObstaclePass(Index num_particles, const PinnedNodes& pins, ObstacleOptions options)
     : ObstaclePass(pinnedMask(num_particles, pins), options) {}
 
-void ObstaclePass::addPlane(const PlaneObstacle& p) {
-  if (!(p.normal.norm() > 0) || !p.point.allFinite()) throw SimError("PlaneObstacle: bad plane");
+PlaneObstacle validatedPlane(const PlaneObstacle& p) {
+  if (!(p.normal.norm() > 0) || !p.normal.allFinite() || !p.point.allFinite() || !p.velocity.allFinite())
+    throw SimError("PlaneObstacle: bad plane");
   PlaneObstacle q = p;
   q.normal.normalize();
-  planes_.push_back(q);
+  return q;
 }
 
-void ObstaclePass::addBox(const BoxObstacle& b) {
-  if (!b.centre.allFinite() || !(b.half_extents.array() >= 0).all() || !b.rotation.allFinite())
+void validateBox(const BoxObstacle& b) {
+  if (!b.centre.allFinite() || !(b.half_extents.array() >= 0).all() || !b.half_extents.allFinite() ||
+      !b.rotation.allFinite() || !b.velocity.allFinite())
     throw SimError("BoxObstacle: bad box");
-  const Mat3 rtr = b.rotation.transpose() * b.rotation;
-  if (!rtr.isApprox(Mat3::Identity(), 1e-9)) throw SimError("BoxObstacle: rotation is not orthonormal");
+  if (!(b.rotation.transpose() * b.rotation).isApprox(Mat3::Identity(), 1e-9))
+    throw SimError("BoxObstacle: rotation is not orthonormal");
+}
+
+void validateSphere(const SphereObstacle& s) {
+  if (!s.centre.allFinite() || !(s.radius > 0) || !std::isfinite(s.radius) || !s.velocity.allFinite())
+    throw SimError("SphereObstacle: bad sphere");
+}
+
+void ObstaclePass::addPlane(const PlaneObstacle& p) { planes_.push_back(validatedPlane(p)); }
+
+void ObstaclePass::addBox(const BoxObstacle& b) {
+  validateBox(b);
   boxes_.push_back(b);
 }
 
 void ObstaclePass::addSphere(const SphereObstacle& s) {
-  if (!s.centre.allFinite() || !(s.radius > 0)) throw SimError("SphereObstacle: bad sphere");
+  validateSphere(s);
   spheres_.push_back(s);
 }
 

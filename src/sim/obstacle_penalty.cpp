@@ -66,21 +66,9 @@ ObstaclePenaltyModel::ObstaclePenaltyModel(std::unique_ptr<ClothModel> base, std
   if (static_cast<Index>(pinned_.size()) != base_->numNodes())
     throw SimError("ObstaclePenaltyModel: the pinned mask has " + std::to_string(pinned_.size()) + " entries for " +
                    std::to_string(base_->numNodes()) + " nodes");
-  for (auto& p : planes_) {
-    if (!(p.normal.norm() > 0) || !p.point.allFinite() || !p.normal.allFinite() || !p.velocity.allFinite())
-      throw SimError("PlaneObstacle: bad plane");
-    p.normal.normalize();
-  }
-  for (const auto& b : boxes_) {
-    if (!b.centre.allFinite() || !(b.half_extents.array() >= 0).all() || !b.half_extents.allFinite() ||
-        !b.rotation.allFinite() || !b.velocity.allFinite())
-      throw SimError("BoxObstacle: bad box");
-    if (!(b.rotation.transpose() * b.rotation).isApprox(Mat3::Identity(), 1e-9))
-      throw SimError("BoxObstacle: rotation is not orthonormal");
-  }
-  for (const auto& s : spheres_)
-    if (!s.centre.allFinite() || !(s.radius > 0) || !std::isfinite(s.radius) || !s.velocity.allFinite())
-      throw SimError("SphereObstacle: bad sphere");
+  for (auto& p : planes_) p = validatedPlane(p);
+  for (const auto& b : boxes_) validateBox(b);
+  for (const auto& s : spheres_) validateSphere(s);
   const Real m = base_->totalMass() / static_cast<Real>(std::max<Index>(1, base_->numNodes()));
   k_ = options_.stiffness_factor * m * kGravity / options_.thickness;
   c_ = options_.damping_ratio * 2 * std::sqrt(k_ * m);
@@ -142,13 +130,16 @@ ForceReport ObstaclePenaltyModel::computeForces(const VecX& x, const VecX& v, Ve
   return report;
 }
 
+Real ObstaclePenaltyModel::penetration(const VecX& x, Index node, Index obstacle) const {
+  return options_.thickness - surface(obstacle, x.segment<3>(dofsPerNode() * node)).distance;
+}
+
 Real ObstaclePenaltyModel::potentialEnergy(const VecX& x) const {
   Real e = base_->potentialEnergy(x);
-  const int b = dofsPerNode();
   for (Index i = 0; i < numNodes(); ++i) {
     if (pinned_[static_cast<std::size_t>(i)]) continue;
     for (Index o = 0; o < obstacleCount(); ++o) {
-      const Real delta = options_.thickness - surface(o, x.segment<3>(b * i)).distance;
+      const Real delta = penetration(x, i, o);
       if (delta > 0) e += 0.5 * k_ * delta * delta;
     }
   }
@@ -157,11 +148,10 @@ Real ObstaclePenaltyModel::potentialEnergy(const VecX& x) const {
 
 Index ObstaclePenaltyModel::contactsAt(const VecX& x) const {
   Index count = 0;
-  const int b = dofsPerNode();
   for (Index i = 0; i < numNodes(); ++i) {
     if (pinned_[static_cast<std::size_t>(i)]) continue;
     for (Index o = 0; o < obstacleCount(); ++o)
-      if (options_.thickness - surface(o, x.segment<3>(b * i)).distance > 0) {
+      if (penetration(x, i, o) > 0) {
         ++count;
         break;
       }

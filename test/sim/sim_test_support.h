@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <random>
 
 #include "textile_handling/sim/block_sparse.h"
 #include "textile_handling/sim/drape_scene.h"
@@ -23,6 +24,15 @@ inline DrapeSceneSpec heldSquareSpec(Real side, Real d) {
   s.hold = {HoldPoint{"corner", Vec2::Zero()}};
   s.hold_position = Vec3(0, 0, 1);
   return s;
+}
+
+/// n values uniform in [-scale, scale] from a fixed seed.
+inline VecX randomVector(Index n, unsigned seed, Real scale = 1) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<Real> unit(-1.0, 1.0);
+  VecX v(n);
+  for (Index i = 0; i < n; ++i) v[i] = scale * unit(rng);
+  return v;
 }
 
 /// The dense matrix of a block-sparse one (column by column, products with unit vectors).

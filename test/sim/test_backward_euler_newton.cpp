@@ -95,13 +95,7 @@ BlockSystem randomSystem(Index nodes, int b, unsigned seed, Real mass) {
   return s;
 }
 
-VecX randomVector(Index n, unsigned seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<Real> unit(-1.0, 1.0);
-  VecX v(n);
-  for (Index i = 0; i < n; ++i) v[i] = unit(rng);
-  return v;
-}
+using sim_test_support::randomVector;
 
 // Indices of the free DOFs.
 std::vector<Index> freeDofs(const std::vector<char>& pinned, int b) {

@@ -26,13 +26,7 @@ namespace {
 
 using test_support::ThreadScope;
 
-VecX randomVector(Index n, unsigned seed, Real scale) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<Real> u(-1, 1);
-  VecX v(n);
-  for (Index i = 0; i < n; ++i) v[i] = scale * u(rng);
-  return v;
-}
+using sim_test_support::randomVector;
 
 // The part of the force that is linear in v at x: f(x, v) - f(x, 0).
 VecX velocityForce(ClothModel& m, const VecX& x, const VecX& v) {

@@ -38,6 +38,15 @@ struct SphereObstacle {
   Vec3 velocity = Vec3::Zero();
 };
 
+/// The plane with its normal normalised. Throws SimError for a zero or non-finite normal, or a non-finite
+/// point or velocity. Every user of obstacles validates with these three functions.
+PlaneObstacle validatedPlane(const PlaneObstacle& p);
+/// Throws SimError for a non-finite centre, size or velocity, a negative size, or a rotation that is not
+/// orthonormal.
+void validateBox(const BoxObstacle& b);
+/// Throws SimError for a non-finite centre or velocity, or a radius that is not finite and positive.
+void validateSphere(const SphereObstacle& s);
+
 struct ObstacleOptions {
   /// Particles closer than this to a surface (or inside) are projected to this distance [m].
   Real contact_distance = 1e-3;

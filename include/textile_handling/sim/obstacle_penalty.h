@@ -106,6 +106,8 @@ class ObstaclePenaltyModel : public ClothModel {
   Index obstacleCount() const { return static_cast<Index>(planes_.size() + boxes_.size() + spheres_.size()); }
   /// Obstacles are numbered planes, then boxes, then spheres.
   ObstacleSurfacePoint surface(Index obstacle, const Vec3& x) const;
+  /// delta = gamma - d of a node against an obstacle at state x (> 0: in contact).
+  Real penetration(const VecX& x, Index node, Index obstacle) const;
 
   std::unique_ptr<ClothModel> base_;
   std::vector<char> pinned_;
