@@ -1,0 +1,234 @@
+// material_lab: runs the virtual material lab (lab/material_lab.h) on one cloth model and material and
+// writes the curves, the KES-style figures and the measured material.
+//
+//   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
+//                [--tests bending,shear,tensile,cantilever] [--directions warp,weft] [--out DIR] [--threads N]
+//
+// Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
+// the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
+// of both directions), lab_material.yaml (the measured curves as a material file).
+// Exit status: 0 done, 2 bad input or usage, 3 a test could not be completed, 4 outputs cannot be written,
+// 5 out of memory or another unexpected error.
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <iostream>
+#include <map>
+#include <new>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "textile_handling/bench/bench_chart.h"
+#include "textile_handling/lab/lab_material.h"
+#include "textile_handling/lab/material_lab.h"
+#include "textile_handling/sim/output_files.h"
+#include "textile_handling/sim/thread_limit.h"
+
+using namespace textile_handling;
+using namespace textile_handling::lab;
+
+namespace {
+
+constexpr int kExitBadInput = 2;
+constexpr int kExitTestFailed = 3;
+constexpr int kExitOutput = 4;
+constexpr int kExitInternal = 5;
+
+const char* kUsage =
+    " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
+    "       [--tests bending,shear,tensile,cantilever] [--directions warp,weft] [--out DIR] [--threads N]\n";
+
+int usage(const char* argv0, const std::string& problem = "") {
+  if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
+  std::cerr << "usage: " << argv0 << kUsage;
+  return kExitBadInput;
+}
+
+struct Options {
+  LabSample sample;
+  std::string material = "cotton";
+  std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever"};
+  std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
+  std::string out_dir = "out/material_lab";
+  int threads = 0;
+};
+
+std::vector<std::string> splitList(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+std::string parseArguments(int argc, char** argv, Options& o) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (i + 1 >= argc) return "option " + a + " needs a value";
+    const std::string value = argv[++i];
+    if (a == "--model") {
+      o.sample.model.name = value;
+    } else if (a == "--model-option") {
+      const auto eq = value.find('=');
+      if (eq == std::string::npos || eq == 0) return "--model-option must be KEY=VALUE, got '" + value + "'";
+      o.sample.model.set(value.substr(0, eq), value.substr(eq + 1));
+    } else if (a == "--material") {
+      o.material = value;
+    } else if (a == "--spacing") {
+      char* end = nullptr;
+      errno = 0;
+      const double d = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(d) || !(d >= 1e-4) || !(d <= 0.05))
+        return "--spacing must be a number of metres in [1e-4, 0.05], got '" + value + "'";
+      o.sample.spacing = d;
+    } else if (a == "--tests") {
+      o.tests = splitList(value);
+      for (const auto& t : o.tests)
+        if (t != "bending" && t != "shear" && t != "tensile" && t != "cantilever")
+          return "--tests: unknown test '" + t + "' (bending, shear, tensile, cantilever)";
+      if (o.tests.empty()) return "--tests is empty";
+    } else if (a == "--directions") {
+      o.directions.clear();
+      for (const auto& t : splitList(value)) {
+        if (t != "warp" && t != "weft") return "--directions: unknown direction '" + t + "' (warp, weft)";
+        o.directions.push_back(yarnDirectionFromString(t));
+      }
+      if (o.directions.empty()) return "--directions is empty";
+    } else if (a == "--out") {
+      o.out_dir = value;
+    } else if (a == "--threads") {
+      std::string error;
+      if (!parseThreadCount(value, &o.threads, &error)) return error;
+    } else {
+      return "unknown option " + a;
+    }
+  }
+  return "";
+}
+
+void writeCurve(const std::string& path, const char* header, const std::vector<CurvePoint>& c) {
+  writeFileAtomically(path, [&](std::ostream& f) {
+    f.precision(10);
+    f << header << "\n";
+    for (const auto& p : c) f << p.x << ',' << p.y << '\n';
+  });
+}
+
+void chart(const std::string& path, const std::vector<std::pair<std::string, const std::vector<CurvePoint>*>>& series,
+           Real x_scale, const std::string& x_label, const std::string& y_label, const std::string& title) {
+  std::vector<ChartPoint> points;
+  for (const auto& s : series)
+    for (const auto& p : *s.second) points.push_back({p.x * x_scale, p.y, "", s.first});
+  std::string error;
+  if (!writeLineChart(path, points, x_label, y_label, title, &error)) throw OutputError(path + ": " + error);
+}
+
+int run(const Options& o) {
+  std::string note;
+  applyThreadLimit(o.threads, &note);
+  if (!note.empty()) std::cout << "material_lab: note: " << note << "\n";
+  LabSample sample = o.sample;
+  try {
+    sample.material = o.material == "cotton" ? Material::cotton() : loadMaterialYaml(o.material);
+    ClothModelRegistry::instance().validate(sample.model);
+  } catch (const std::exception& e) {
+    std::cerr << "material_lab: " << e.what() << "\n";
+    return kExitBadInput;
+  }
+  try {
+    createDirectories(o.out_dir, 0755);
+    checkWritableDirectory(o.out_dir);
+  } catch (const OutputError& e) {
+    std::cerr << "material_lab: " << e.what() << "\n";
+    return kExitOutput;
+  }
+  std::cout << "material lab: model " << sample.model.text() << ", material " << sample.material.name << ", d = "
+            << sample.spacing << " m\n";
+  LabReport report;
+  report.sample = sample;
+  // A test that cannot be completed is reported and the others still run; the exit status says so.
+  int failed = 0;
+  for (const auto& test : o.tests)
+    for (const YarnDirection dir : o.directions) {
+      std::cout << "  " << test << " " << toString(dir) << " ..." << std::flush;
+      try {
+        if (test == "bending") report.bending.push_back(runKesBending(sample, dir));
+        if (test == "shear") report.shear.push_back(runKesShear(sample, dir));
+        if (test == "tensile") report.tensile.push_back(runKesTensile(sample, dir));
+        if (test == "cantilever") report.cantilever.push_back(runCantilever(sample, dir));
+        std::cout << " done\n";
+      } catch (const MaterialLabError& e) {
+        std::cout << " FAILED\n";
+        std::cerr << "material_lab: " << e.what() << "\n";
+        ++failed;
+      } catch (const std::invalid_argument& e) {
+        std::cout << " FAILED\n";
+        std::cerr << "material_lab: " << e.what() << "\n";
+        return kExitBadInput;
+      }
+    }
+  const std::vector<LabFigure> figures = labFigures(report);
+  std::cout << "figure,direction,unit,lab,material_file\n";
+  for (const auto& f : figures)
+    std::cout << f.name << ',' << f.direction << ',' << f.unit << ',' << f.value << ','
+              << (std::isnan(f.material_value) ? std::string("") : std::to_string(f.material_value)) << '\n';
+  try {
+    const std::string& d = o.out_dir;
+    writeFileAtomically(d + "/figures.csv", [&](std::ostream& f) { writeFiguresCsv(f, figures); });
+    std::vector<std::pair<std::string, const std::vector<CurvePoint>*>> b, s, t;
+    for (const auto& r : report.bending) {
+      writeCurve(d + "/bending_" + toString(r.direction) + ".csv", "curvature_per_cm,moment_gf_cm_per_cm", r.cycle);
+      b.emplace_back(toString(r.direction), &r.cycle);
+    }
+    for (const auto& r : report.shear) {
+      writeCurve(d + "/shear_" + toString(r.direction) + ".csv", "shear_angle_rad,force_gf_per_cm", r.cycle);
+      s.emplace_back(toString(r.direction), &r.cycle);
+    }
+    for (const auto& r : report.tensile) {
+      writeCurve(d + "/tensile_" + toString(r.direction) + ".csv", "strain,force_gf_per_cm", r.cycle);
+      t.emplace_back(toString(r.direction), &r.cycle);
+    }
+    for (const auto& r : report.cantilever)
+      writeFileAtomically(d + "/cantilever_" + toString(r.direction) + ".csv", [&](std::ostream& f) {
+        f.precision(10);
+        f << "overhang_m,tip_angle_deg,newton_iterations\n";
+        for (const auto& p : r.samples) f << p.overhang_m << ',' << p.angle_deg << ',' << p.iterations << '\n';
+      });
+    const std::string title = sample.model.name + ", " + sample.material.name;
+    if (!b.empty()) chart(d + "/bending.png", b, 1, "curvature [1/cm]", "moment [gf cm/cm]", "KES-FB2 bending: " + title);
+    if (!s.empty()) chart(d + "/shear.png", s, 180 / kPi, "shear angle [deg]", "force [gf/cm]", "KES-FB1 shear: " + title);
+    if (!t.empty()) chart(d + "/tensile.png", t, 100, "strain [%]", "force [gf/cm]", "KES-FB1 tensile: " + title);
+    if (!report.bending.empty() && !report.shear.empty())
+      writeFileAtomically(d + "/lab_material.yaml", [&](std::ostream& f) {
+        f << "# Measured by material_lab from " << sample.model.text() << " with material " << sample.material.name
+          << " at d = " << sample.spacing << " m (docs/material_lab.md)\n"
+          << materialToYaml(measuredMaterial(report, sample.material.name + "_lab"));
+      });
+  } catch (const OutputError& e) {
+    std::cerr << "material_lab: cannot write outputs: " << e.what() << "\n";
+    return kExitOutput;
+  }
+  std::cout << "outputs in " << o.out_dir << "/\n";
+  if (failed > 0) {
+    std::cerr << "material_lab: " << failed << " test(s) could not be completed\n";
+    return kExitTestFailed;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options options;
+  const std::string problem = parseArguments(argc, argv, options);
+  if (!problem.empty()) return usage(argv[0], problem);
+  try {
+    return run(options);
+  } catch (const std::bad_alloc&) {
+    std::cerr << "material_lab: out of memory (use a coarser --spacing)\n";
+  } catch (const std::exception& e) {
+    std::cerr << "material_lab: unexpected error: " << e.what() << "\n";
+  }
+  return kExitInternal;
+}

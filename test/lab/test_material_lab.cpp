@@ -1,0 +1,217 @@
+// The virtual material lab (lab/material_lab.h, lab/lab_material.h): the particle model reproduces the
+// material it was given, every registered model runs the tests, and bad input gets errors naming the field.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "textile_handling/lab/lab_material.h"
+#include "textile_handling/lab/material_lab.h"
+#include "textile_handling/sim/sim_errors.h"
+
+namespace textile_handling {
+namespace lab {
+namespace {
+
+LabSample particleSample(const Material& m, Real spacing) {
+  LabSample s;
+  s.model = ClothModelSpec("particle_kes");
+  s.material = m;
+  s.spacing = spacing;
+  return s;
+}
+
+Material linearMaterial(Real bending_rigidity_Nm) {
+  return Material::linearElastic("linear", 0.2, 98.0665, bending_rigidity_Nm, 1e8);
+}
+
+Real relativeError(Real value, Real reference) { return std::abs(value - reference) / std::abs(reference); }
+
+// The cycle's value at abscissa x on its first (loading) quarter.
+Real loadingValue(const std::vector<CurvePoint>& cycle, Real x) {
+  const std::size_t n = (cycle.size() - 1) / 4;
+  for (std::size_t k = 0; k < n; ++k)
+    if (cycle[k].x <= x && x <= cycle[k + 1].x)
+      return cycle[k].y + (x - cycle[k].x) / (cycle[k + 1].x - cycle[k].x) * (cycle[k + 1].y - cycle[k].y);
+  return std::nan("");
+}
+
+TEST(MaterialLabKesBending, ParticleModelReproducesTheBendingCurvesOfCotton) {
+  const Material cotton = Material::cotton();
+  for (const auto dir : {YarnDirection::kWarp, YarnDirection::kWeft}) {
+    const KesBendingResult r = runKesBending(particleSample(cotton, 0.001), dir);
+    ASSERT_EQ(r.cycle.size(), 201u);
+    // Measured 0.65 % (warp) and 0.70 % (weft) above: the model reads 2 asin(kappa d/2)/d (docs/material_lab.md).
+    EXPECT_LT(relativeError(r.B, materialKesB(cotton, dir)), 0.02) << toString(dir) << " B " << r.B;
+    EXPECT_LT(std::abs(r.twoHB), 1e-9) << "the particle model has no hysteresis";
+    // The moment itself, on both pieces of the curve (0.3 and 1.0 1/cm).
+    for (const Real k : {0.3, 1.0})
+      EXPECT_LT(relativeError(loadingValue(r.cycle, k), cotton.bendCurve(static_cast<int>(dir)).value(k)), 0.02)
+          << toString(dir) << " at " << k;
+    // Odd: the negative branch mirrors the positive one.
+    EXPECT_NEAR(r.cycle[150].y, -r.cycle[50].y, 1e-9);
+  }
+  // A material twice as stiff in bending reads twice the B.
+  const Material stiff = scaledMaterial(cotton, 2, 1, 1, "stiff");
+  EXPECT_NEAR(runKesBending(particleSample(stiff, 0.001), YarnDirection::kWarp).B /
+                  runKesBending(particleSample(cotton, 0.001), YarnDirection::kWarp).B,
+              2.0, 1e-6);
+}
+
+TEST(MaterialLabKesShear, ParticleModelReadsTheMeanOfItsShearCurves) {
+  const Material cotton = Material::cotton();
+  const Real mean = 0.5 * (materialKesG(cotton, YarnDirection::kWarp) + materialKesG(cotton, YarnDirection::kWeft));
+  for (const auto dir : {YarnDirection::kWarp, YarnDirection::kWeft}) {
+    const KesShearResult r = runKesShear(particleSample(cotton, 0.002), dir);
+    EXPECT_LT(relativeError(r.G, mean), 0.01) << toString(dir) << " G " << r.G;
+    EXPECT_LT(std::abs(r.twoHG) + std::abs(r.twoHG5), 1e-9);
+  }
+}
+
+TEST(MaterialLabKesTensile, ParticleModelFollowsItsQuarticStretchLaw) {
+  const Material cotton = Material::cotton();
+  const KesTensileResult r = runKesTensile(particleSample(cotton, 0.002), YarnDirection::kWarp);
+  const Real em = std::pow(500 * kGfPerCmToNPerM / cotton.tension_stiffness, 0.25);
+  EXPECT_LT(relativeError(r.EMT, 100 * em), 0.005) << r.EMT;
+  EXPECT_NEAR(r.LT, 0.4, 0.005);  // F = Y e^4: WT = F_max EMT / 5
+  EXPECT_NEAR(r.RT, 100, 0.5);    // elastic: unloading returns the work
+  // Four times the stiffness: EMT shrinks by 4^(1/4).
+  Material stiff = cotton;
+  stiff.tension_stiffness *= 4;
+  EXPECT_NEAR(r.EMT / runKesTensile(particleSample(stiff, 0.002), YarnDirection::kWarp).EMT, std::sqrt(2.0), 0.01);
+}
+
+TEST(MaterialCantileverBendingLength, LinearCurveGivesPeircesBendingLength) {
+  for (const Real b : {9.80665e-6, 8 * 9.80665e-6}) {
+    const Real c = materialCantileverBendingLength(linearMaterial(b), YarnDirection::kWarp);
+    EXPECT_LT(relativeError(c, std::cbrt(b / (0.2 * kGravity))), 0.005) << c;
+  }
+  // Cotton's curve is stiffer below 0.4 1/cm than its B: the cantilever sees the low-curvature stiffness.
+  const Material cotton = Material::cotton();
+  const Real w = cotton.areal_density * kGravity;
+  EXPECT_GT(materialCantileverBendingLength(cotton, YarnDirection::kWarp),
+            std::cbrt(materialKesB(cotton, YarnDirection::kWarp) * kGramForce * 0.01 / w));
+}
+
+TEST(MaterialLabCantilever, ParticleModelReproducesTheBendingLengthOfItsMaterial) {
+  // At d = 2 mm within 5 % for a linear curve and for cotton in both directions (measured: linear 4.5 %,
+  // cotton warp 2.7 %, weft 3.3 % short).
+  const Material linear = linearMaterial(9.80665e-6);
+  const Real c_linear = materialCantileverBendingLength(linear, YarnDirection::kWarp);
+  const CantileverResult coarse = runCantilever(particleSample(linear, 0.002), YarnDirection::kWarp);
+  EXPECT_LT(relativeError(coarse.bending_length_m, c_linear), 0.05) << coarse.bending_length_m;
+  EXPECT_LT(relativeError(coarse.flexural_rigidity_Nm, 9.80665e-6), 0.15);
+  const Material cotton = Material::cotton();
+  for (const auto dir : {YarnDirection::kWarp, YarnDirection::kWeft}) {
+    const CantileverResult r = runCantilever(particleSample(cotton, 0.002), dir);
+    EXPECT_LT(relativeError(r.bending_length_m, materialCantileverBendingLength(cotton, dir)), 0.05) << toString(dir);
+    // The samples bracket the angle with adjacent grid lengths.
+    ASSERT_GE(r.samples.size(), 2u);
+    EXPECT_NEAR(r.overhang_m, 2 * r.bending_length_m, 1e-12);
+  }
+  // First-order convergence in d: half the spacing, about half the error (measured 4.5 % -> 2.3 %).
+  const CantileverResult fine = runCantilever(particleSample(linear, 0.001), YarnDirection::kWarp);
+  EXPECT_LT(relativeError(fine.bending_length_m, c_linear), 0.65 * relativeError(coarse.bending_length_m, c_linear));
+}
+
+TEST(MaterialLabModels, EveryRegisteredModelRunsTheKesTests) {
+  // choi_ko and yarn_woven read their materials differently; the lab must run them and give finite,
+  // positive rigidities (their values are figures in docs/material_lab.md, not asserted here).
+  for (const std::string model : {"choi_ko", "yarn_woven"}) {
+    LabSample s;
+    s.model = ClothModelSpec(model);
+    s.spacing = 0.002;
+    const KesBendingResult b = runKesBending(s, YarnDirection::kWarp, KesBendingProtocol{1.0, 1.0, 2.5, 10});
+    const KesShearResult g = runKesShear(s, YarnDirection::kWeft, KesShearProtocol{1.0, 1.0, 8.0, 10});
+    EXPECT_TRUE(std::isfinite(b.B) && b.B > 0) << model << " B " << b.B;
+    EXPECT_TRUE(std::isfinite(g.G) && g.G > 0) << model << " G " << g.G;
+  }
+}
+
+TEST(MaterialLabMeasuredMaterial, ParticleRunOfTheMeasuredMaterialReproducesTheMeasuredCurves) {
+  // Measure the yarn model, write its curves as a material, run the particle model on that material.
+  LabReport report;
+  report.sample.model = ClothModelSpec("yarn_woven");
+  report.sample.spacing = 0.002;
+  report.bending.push_back(runKesBending(report.sample, YarnDirection::kWarp, KesBendingProtocol{1.0, 1.0, 2.5, 20}));
+  report.shear.push_back(runKesShear(report.sample, YarnDirection::kWarp, KesShearProtocol{1.0, 1.0, 8.0, 20}));
+  const Material m = measuredMaterial(report, "yarn_plain_lab");
+  EXPECT_EQ(m.name, "yarn_plain_lab");
+  EXPECT_EQ(m.bend_warp.kind(), MaterialCurve::Kind::kTable);
+  // A weft curve not tested takes the warp one.
+  EXPECT_EQ(m.bend_weft, m.bend_warp);
+  EXPECT_GT(m.areal_density, 0);
+  const Real b = runKesBending(particleSample(m, 0.001), YarnDirection::kWarp).B;
+  EXPECT_LT(relativeError(b, report.bending.front().B), 0.02) << b << " vs " << report.bending.front().B;
+  const Real g = runKesShear(particleSample(m, 0.002), YarnDirection::kWarp).G;
+  EXPECT_LT(relativeError(g, report.shear.front().G), 0.02) << g << " vs " << report.shear.front().G;
+  // Round trip through the material format.
+  EXPECT_EQ(parseMaterialYaml(materialToYaml(m)), m);
+}
+
+TEST(MaterialLabFigures, FiguresCarryTheMaterialValuesAndAreWrittenAsCsv) {
+  LabReport report;
+  report.sample = particleSample(Material::cotton(), 0.002);
+  report.bending.push_back(runKesBending(report.sample, YarnDirection::kWeft, KesBendingProtocol{1.0, 1.0, 2.5, 20}));
+  const std::vector<LabFigure> f = labFigures(report);
+  ASSERT_EQ(f.size(), 2u);
+  EXPECT_EQ(f[0].name, "B");
+  EXPECT_EQ(f[0].direction, "weft");
+  EXPECT_DOUBLE_EQ(f[0].material_value, materialKesB(Material::cotton(), YarnDirection::kWeft));
+  EXPECT_TRUE(std::isnan(f[1].material_value));
+  std::ostringstream csv;
+  writeFiguresCsv(csv, f);
+  EXPECT_EQ(csv.str().substr(0, csv.str().find('\n')), "figure,direction,unit,lab,material_file,relative_difference");
+  EXPECT_NE(csv.str().find("\n2HB,weft,gf*cm/cm,"), std::string::npos);
+}
+
+template <typename F>
+std::string errorOf(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(MaterialLabBadInput, ErrorsNameTheFieldAtFault) {
+  LabSample s = particleSample(Material::cotton(), std::nan(""));
+  EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp); }).find("spacing"), std::string::npos);
+  s.spacing = 0.002;
+  KesBendingProtocol bp;
+  bp.steps_per_quarter = 2;
+  EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp, bp); }).find("bending.steps_per_quarter"), std::string::npos);
+  bp = KesBendingProtocol{};
+  bp.max_curvature_per_cm = 1.0;
+  EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp, bp); }).find("bending.max_curvature_per_cm"), std::string::npos);
+  KesShearProtocol sp;
+  sp.height_cm = -1;
+  EXPECT_NE(errorOf([&] { runKesShear(s, YarnDirection::kWarp, sp); }).find("shear.height_cm"), std::string::npos);
+  KesTensileProtocol tp;
+  tp.max_strain = 0.01;  // cotton reaches F_max at 4.7 %
+  EXPECT_NE(errorOf([&] { runKesTensile(s, YarnDirection::kWarp, tp); }).find("tensile.max_strain"), std::string::npos);
+  KesBendingProtocol huge;
+  huge.width_cm = 1e4;
+  EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp, huge); }).find("bending.width_cm"), std::string::npos);
+  CantileverProtocol cp;
+  cp.max_overhang_m = 0.01;  // cotton needs about 5.7 cm
+  EXPECT_NE(errorOf([&] { runCantilever(s, YarnDirection::kWarp, cp); }).find("max_overhang_m"), std::string::npos);
+  cp = CantileverProtocol{};
+  cp.angle_deg = 90;
+  EXPECT_NE(errorOf([&] { runCantilever(s, YarnDirection::kWarp, cp); }).find("cantilever.angle_deg"), std::string::npos);
+  EXPECT_THROW(yarnDirectionFromString("bias"), MaterialLabError);
+  // A bending curve that falls has no cantilever bending length.
+  Material falling = Material::cotton();
+  falling.bend_warp = MaterialCurve::table({0, 1, 2}, {0, 1, 0.5});
+  EXPECT_NE(errorOf([&] { materialCantileverBendingLength(falling, YarnDirection::kWarp); }).find("bend_warp"), std::string::npos);
+  // An unknown model or option is the registry's error, naming it.
+  s.model = ClothModelSpec("no_such_model");
+  EXPECT_THROW(runKesShear(s, YarnDirection::kWarp), ClothModelError);
+  s.model = ClothModelSpec("particle_kes").set("no_such_key", "1");
+  EXPECT_NE(errorOf([&] { runKesShear(s, YarnDirection::kWarp); }).find("model.no_such_key"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace lab
+}  // namespace textile_handling

@@ -1,0 +1,58 @@
+// material_lab as a process: usage errors exit 2 naming the option, a run writes its curves, charts,
+// figures and the measured material, and a test the model cannot complete exits 3 after the others ran.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <string>
+
+#include "../test_support.h"
+#include "tool_process.h"
+
+namespace {
+
+using textile_handling::tool_process::readAll;
+using textile_handling::tool_process::runTool;
+
+const std::string kMaterialLab = MATERIAL_LAB_EXE;
+
+TEST(MaterialLabCli, BadArgumentsExitWithTwoNamingTheOption) {
+  const auto r1 = runTool(kMaterialLab, {"--tests", "bending,drape"});
+  EXPECT_EQ(r1.exit_code, 2);
+  EXPECT_NE(r1.err.find("unknown test 'drape'"), std::string::npos) << r1.err;
+  const auto r2 = runTool(kMaterialLab, {"--spacing", "nan"});
+  EXPECT_EQ(r2.exit_code, 2);
+  EXPECT_NE(r2.err.find("--spacing"), std::string::npos) << r2.err;
+  const auto r3 = runTool(kMaterialLab, {"--model", "no_such_model", "--out", "/tmp/unused"});
+  EXPECT_EQ(r3.exit_code, 2);
+  EXPECT_NE(r3.err.find("no_such_model"), std::string::npos) << r3.err;
+  const auto r4 = runTool(kMaterialLab, {"--material", "/nonexistent/material.yaml"});
+  EXPECT_EQ(r4.exit_code, 2);
+  EXPECT_NE(r4.err.find("/nonexistent/material.yaml"), std::string::npos) << r4.err;
+  const auto r5 = runTool(kMaterialLab, {"--directions"});
+  EXPECT_EQ(r5.exit_code, 2);
+}
+
+TEST(MaterialLabCli, ARunWritesCurvesChartsFiguresAndTheMeasuredMaterial) {
+  const std::string dir = textile_handling::test_support::freshTempDir("material_lab_cli");
+  const auto r = runTool(kMaterialLab, {"--tests", "bending,shear", "--directions", "warp", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  for (const char* f : {"figures.csv", "bending_warp.csv", "shear_warp.csv", "bending.png", "shear.png", "lab_material.yaml"})
+    EXPECT_TRUE(std::filesystem::is_regular_file(dir + "/" + f)) << f;
+  const std::string figures = readAll(dir + "/figures.csv");
+  EXPECT_NE(figures.find("\nB,warp,gf*cm^2/cm,"), std::string::npos) << figures;
+  EXPECT_NE(figures.find("\nG,warp,gf/(cm*deg),"), std::string::npos) << figures;
+  EXPECT_NE(readAll(dir + "/lab_material.yaml").find("name: cotton_lab"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(MaterialLabCli, ATestTheModelCannotCompleteExitsThreeAfterTheOthersRan) {
+  // choi_ko's default tensile stiffness (100 N/m) never reaches KES's 500 gf/cm within 50 % strain.
+  const std::string dir = textile_handling::test_support::freshTempDir("material_lab_cli_fail");
+  const auto r = runTool(kMaterialLab, {"--model", "choi_ko", "--tests", "tensile,shear", "--directions", "warp", "--out", dir});
+  EXPECT_EQ(r.exit_code, 3) << r.err;
+  EXPECT_NE(r.err.find("tensile.max_strain"), std::string::npos) << r.err;
+  EXPECT_TRUE(std::filesystem::is_regular_file(dir + "/shear_warp.csv"));
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
