@@ -15,16 +15,6 @@ constexpr Real kDeg = kPi / 180;
 // Columns of the clamp on the platform: the edge column and two behind it, so the edge holds the slope.
 constexpr int kClampColumns = 2;
 
-// The sample with settling damping where the model has the key and the sample does not set it: an
-// equilibrium does not depend on it, and a dynamic settle needs it.
-LabSample settlingSample(const LabSample& sample) {
-  LabSample s = sample;
-  const ClothModelDescriptor& d = ClothModelRegistry::instance().find(s.model.name);
-  if (d.hasOptionKey("settle_damping_per_s") && !s.model.options.count("settle_damping_per_s"))
-    s.model.set("settle_damping_per_s", Real(4));
-  return s;
-}
-
 // Angle below the horizontal [deg] of the line from the platform edge to the tip of a strip whose
 // overhang is `cells` grid cells, at static equilibrium. The static solve starts from the flat strip;
 // if it fails (a model whose energy landscape the solver cannot descend from there, such as Choi-Ko's

@@ -61,6 +61,7 @@ std::vector<LabFigure> labFigures(const LabReport& report) {
     out.push_back({"c", dir, "m", r.bending_length_m, c});
     out.push_back({"G_cantilever", dir, "N*m", r.flexural_rigidity_Nm, m.areal_density * kGravity * c * c * c});
   }
+  for (const auto& r : report.drape) out.push_back({"DC", "both", "-", r.drape_coefficient, kNaN});
   return out;
 }
 

@@ -78,6 +78,14 @@ Specimen makeSpecimen(const LabSample& sample, YarnDirection direction, Real a_m
   return s;
 }
 
+LabSample settlingSample(const LabSample& sample) {
+  LabSample s = sample;
+  const ClothModelDescriptor& d = ClothModelRegistry::instance().find(s.model.name);
+  if (d.hasOptionKey("settle_damping_per_s") && !s.model.options.count("settle_damping_per_s"))
+    s.model.set("settle_damping_per_s", Real(4));
+  return s;
+}
+
 std::vector<Real> symmetricCycle(Real max, int steps_per_quarter) {
   const int n = steps_per_quarter;
   std::vector<Real> q;

@@ -2,11 +2,13 @@
 // writes the curves, the KES-style figures and the measured material.
 //
 //   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
-//                [--tests bending,shear,tensile,cantilever] [--directions warp,weft] [--out DIR] [--threads N]
+//                [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]
+//                [--out DIR] [--threads N]
 //
 // Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
-// of both directions), lab_material.yaml (the measured curves as a material file).
+// of both directions), drape.csv (the drape coefficient run), lab_material.yaml (the measured curves as a
+// material file).
 // Exit status: 0 done, 2 bad input or usage, 3 a test could not be completed, 4 outputs cannot be written,
 // 5 out of memory or another unexpected error.
 #include <cerrno>
@@ -37,7 +39,8 @@ constexpr int kExitInternal = 5;
 
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
-    "       [--tests bending,shear,tensile,cantilever] [--directions warp,weft] [--out DIR] [--threads N]\n";
+    "       [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]\n"
+    "       [--out DIR] [--threads N]\n";
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
@@ -48,7 +51,8 @@ int usage(const char* argv0, const std::string& problem = "") {
 struct Options {
   LabSample sample;
   std::string material = "cotton";
-  std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever"};
+  std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever", "drape"};
+  DrapeCoefficientProtocol drape;
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
   std::string out_dir = "out/material_lab";
   int threads = 0;
@@ -75,18 +79,18 @@ std::string parseArguments(int argc, char** argv, Options& o) {
       o.sample.model.set(value.substr(0, eq), value.substr(eq + 1));
     } else if (a == "--material") {
       o.material = value;
-    } else if (a == "--spacing") {
+    } else if (a == "--spacing" || a == "--drape-spacing") {
       char* end = nullptr;
       errno = 0;
       const double d = std::strtod(value.c_str(), &end);
       if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(d) || !(d >= 1e-4) || !(d <= 0.05))
-        return "--spacing must be a number of metres in [1e-4, 0.05], got '" + value + "'";
-      o.sample.spacing = d;
+        return a + " must be a number of metres in [1e-4, 0.05], got '" + value + "'";
+      (a == "--spacing" ? o.sample.spacing : o.drape.spacing_m) = d;
     } else if (a == "--tests") {
       o.tests = splitList(value);
       for (const auto& t : o.tests)
-        if (t != "bending" && t != "shear" && t != "tensile" && t != "cantilever")
-          return "--tests: unknown test '" + t + "' (bending, shear, tensile, cantilever)";
+        if (t != "bending" && t != "shear" && t != "tensile" && t != "cantilever" && t != "drape")
+          return "--tests: unknown test '" + t + "' (bending, shear, tensile, cantilever, drape)";
       if (o.tests.empty()) return "--tests is empty";
     } else if (a == "--directions") {
       o.directions.clear();
@@ -151,8 +155,11 @@ int run(const Options& o) {
   int failed = 0;
   for (const auto& test : o.tests)
     for (const YarnDirection dir : o.directions) {
-      std::cout << "  " << test << " " << toString(dir) << " ..." << std::flush;
+      // The drape coefficient has no direction: it runs once.
+      if (test == "drape" && dir != o.directions.front()) continue;
+      std::cout << "  " << test << (test == "drape" ? "" : " " + toString(dir)) << " ..." << std::flush;
       try {
+        if (test == "drape") report.drape.push_back(runDrapeCoefficient(sample, o.drape));
         if (test == "bending") report.bending.push_back(runKesBending(sample, dir));
         if (test == "shear") report.shear.push_back(runKesShear(sample, dir));
         if (test == "tensile") report.tensile.push_back(runKesTensile(sample, dir));
@@ -194,6 +201,14 @@ int run(const Options& o) {
         f.precision(10);
         f << "overhang_m,tip_angle_deg,newton_iterations\n";
         for (const auto& p : r.samples) f << p.overhang_m << ',' << p.angle_deg << ',' << p.iterations << '\n';
+      });
+    for (const auto& r : report.drape)
+      writeFileAtomically(d + "/drape.csv", [&](std::ostream& f) {
+        f.precision(10);
+        f << "drape_coefficient,shadow_area_m2,sample_area_m2,disc_area_m2,nodes,rest_reached,sim_time_s,steps,wall_time_s\n"
+          << r.drape_coefficient << ',' << r.shadow_area_m2 << ',' << r.sample_area_m2 << ',' << r.disc_area_m2 << ','
+          << r.nodes << ',' << (r.rest_reached ? "true" : "false") << ',' << r.sim_time_s << ',' << r.steps << ','
+          << r.wall_time_s << '\n';
       });
     const std::string title = sample.model.name + ", " + sample.material.name;
     if (!b.empty()) chart(d + "/bending.png", b, 1, "curvature [1/cm]", "moment [gf cm/cm]", "KES-FB2 bending: " + title);

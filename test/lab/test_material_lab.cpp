@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
+#include <sstream>
 #include <string>
 
 #include "textile_handling/lab/lab_material.h"
@@ -165,6 +167,26 @@ TEST(MaterialLabFigures, FiguresCarryTheMaterialValuesAndAreWrittenAsCsv) {
   EXPECT_NE(csv.str().find("\n2HB,weft,gf*cm/cm,"), std::string::npos);
 }
 
+TEST(MaterialLabDrape, StifferClothDrapesWiderAndARigidSheetStaysFlat) {
+  // Measured at d = 1 cm: cotton 0.76 (particle_kes); choi_ko 0.35 and yarn_woven 0.52 (docs/material_lab.md).
+  const Material cotton = Material::cotton();
+  const DrapeCoefficientResult base = runDrapeCoefficient(particleSample(cotton, 0.002));
+  EXPECT_TRUE(base.rest_reached);
+  EXPECT_GT(base.drape_coefficient, 0.3);
+  EXPECT_LT(base.drape_coefficient, 0.95);
+  EXPECT_NEAR(base.disc_area_m2, kPi * 0.09 * 0.09, 1e-12);
+  // The flat sample's shadow is the rasterised circle's cells: within one cell row of the circle.
+  EXPECT_GT(base.sample_area_m2, kPi * 0.14 * 0.14);
+  EXPECT_LT(base.sample_area_m2, kPi * 0.15 * 0.15);
+  const Real limp = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 0.1, 1, 1, "limp"), 0.002)).drape_coefficient;
+  const Real stiff = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 10, 1, 1, "stiff"), 0.002)).drape_coefficient;
+  EXPECT_LT(limp, base.drape_coefficient - 0.1);
+  EXPECT_GT(stiff, base.drape_coefficient + 0.05);
+  const Real rigid = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 1e4, 1, 1, "rigid"), 0.002)).drape_coefficient;
+  EXPECT_GT(rigid, 0.97);
+  EXPECT_LE(rigid, 1.0 + 1e-9);
+}
+
 template <typename F>
 std::string errorOf(F&& f) {
   try {
@@ -200,6 +222,15 @@ TEST(MaterialLabBadInput, ErrorsNameTheFieldAtFault) {
   cp = CantileverProtocol{};
   cp.angle_deg = 90;
   EXPECT_NE(errorOf([&] { runCantilever(s, YarnDirection::kWarp, cp); }).find("cantilever.angle_deg"), std::string::npos);
+  DrapeCoefficientProtocol dp;
+  dp.disc_diameter_m = 0.4;
+  EXPECT_NE(errorOf([&] { runDrapeCoefficient(s, dp); }).find("drape.disc_diameter_m"), std::string::npos);
+  dp = DrapeCoefficientProtocol{};
+  dp.spacing_m = 1e-5;  // 30 000 cells across
+  EXPECT_NE(errorOf([&] { runDrapeCoefficient(s, dp); }).find("drape.sample_diameter_m"), std::string::npos);
+  dp = DrapeCoefficientProtocol{};
+  dp.perturbation_m = std::nan("");
+  EXPECT_NE(errorOf([&] { runDrapeCoefficient(s, dp); }).find("drape.perturbation_m"), std::string::npos);
   EXPECT_THROW(yarnDirectionFromString("bias"), MaterialLabError);
   // A bending curve that falls has no cantilever bending length.
   Material falling = Material::cotton();

@@ -19,19 +19,20 @@ struct LabReport {
   std::vector<KesShearResult> shear;
   std::vector<KesTensileResult> tensile;
   std::vector<CantileverResult> cantilever;
+  std::vector<DrapeCoefficientResult> drape;  ///< at most one (the test has no direction)
 };
 
 /// One figure: its KES name, direction, unit, the lab's value and the value the sample's material file
 /// implies under the thesis's particle model laws (NaN where the file says nothing, e.g. 2HB).
 struct LabFigure {
-  std::string name;       ///< B, 2HB, G, 2HG, 2HG5, EMT, LT, WT, RT, c, G_cantilever
-  std::string direction;  ///< warp | weft
+  std::string name;       ///< B, 2HB, G, 2HG, 2HG5, EMT, LT, WT, RT, c, G_cantilever, DC
+  std::string direction;  ///< warp | weft | both (DC)
   std::string unit;
   Real value = 0;
   Real material_value = std::numeric_limits<Real>::quiet_NaN();
 };
 
-/// Every figure of `report`, test by test in the order bending, shear, tensile, cantilever.
+/// Every figure of `report`, test by test in the order bending, shear, tensile, cantilever, drape.
 std::vector<LabFigure> labFigures(const LabReport& report);
 
 /// CSV with header figure,direction,unit,lab,material_file,relative_difference (empty cells for NaN).

@@ -9,6 +9,8 @@
 //                                       released; figures EMT, LT, WT, RT
 //   ASTM D1388        runCantilever     a strip clamped at a platform edge droops under its weight; the
 //                                       overhang whose tip reaches the 41.5 degree line is 2 c
+//   BS 5058           runDrapeCoefficient a 30 cm disc of cloth on an 18 cm support drapes into folds;
+//                                       DC = (shadow - support) / (sample - support)
 //
 // The three KES tests impose the instrument's ideal deformation on every node position (a model's further
 // DOFs, such as a yarn crossing's sliding coordinates, keep their rest values) and read the instrument's
@@ -168,6 +170,39 @@ struct CantileverResult {
 /// settling damping 4/s where the model has the key) finished by the static solve.
 /// Throws MaterialLabError if no overhang in the range brackets the angle or a solve fails.
 CantileverResult runCantilever(const LabSample& sample, YarnDirection direction, const CantileverProtocol& protocol = {});
+
+// ---- Drape coefficient (BS 5058 / ISO 9073-9) -------------------------------------------------------
+
+struct DrapeCoefficientProtocol {
+  Real sample_diameter_m = 0.30;  ///< circular sample (BS 5058: 30 cm)
+  Real disc_diameter_m = 0.18;    ///< support disc (BS 5058: 18 cm); the nodes on it are held
+  /// Grid spacing of this test [m]; 0 = the sample's. A whole-sample shape, resolved like a database
+  /// drape: 1 cm by default (the KES pieces need millimetres, this one does not).
+  Real spacing_m = 0.01;
+  /// Out-of-plane start noise [m] (fixed pseudo-random, from `seed`) that lets the folds choose their places.
+  Real perturbation_m = 1e-3;
+  unsigned seed = 1;
+  Real max_time_s = 10;           ///< simulated-time cap of the settle
+  Real shadow_pixel_m = 1e-3;     ///< pixel of the projected-area raster
+};
+
+struct DrapeCoefficientResult {
+  Real drape_coefficient = 0;     ///< (A_shadow - A_disc) / (A_sample - A_disc) [-]
+  Real shadow_area_m2 = 0;        ///< vertical projection of the draped sample
+  Real sample_area_m2 = 0;        ///< the same projection of the flat sample
+  Real disc_area_m2 = 0;
+  Index nodes = 0;
+  bool rest_reached = false;      ///< false: the settle stopped at max_time_s (the figure is still reported)
+  Real sim_time_s = 0;
+  long steps = 0;
+  Real wall_time_s = 0;
+};
+
+/// Drapes a circular sample over a disc (the nodes within the disc radius held flat, everything else
+/// free under gravity) by a dynamic settle (semi-implicit, error-controlled steps, settling damping 4/s
+/// where the model has the key) and measures the shadow area. Throws MaterialLabError for a bad protocol
+/// or a diverged settle.
+DrapeCoefficientResult runDrapeCoefficient(const LabSample& sample, const DrapeCoefficientProtocol& protocol = {});
 
 // ---- What a material file implies -------------------------------------------------------------------
 
