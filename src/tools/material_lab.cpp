@@ -3,12 +3,13 @@
 //
 //   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
 //                [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]
-//                [--out DIR] [--threads N]
+//                [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
 //
 // Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
 // of both directions), drape.csv (the drape coefficient run), lab_material.yaml (the measured curves as a
-// material file).
+// material file) and, for every model of --fit, fitted_<model>.yaml (a material with which that model
+// reproduces the tested model's B, G and EMT) and fit_<model>.csv (target and fitted figures).
 // Exit status: 0 done, 2 bad input or usage, 3 a test could not be completed, 4 outputs cannot be written,
 // 5 out of memory or another unexpected error.
 #include <cerrno>
@@ -23,6 +24,7 @@
 
 #include "textile_handling/bench/bench_chart.h"
 #include "textile_handling/lab/lab_material.h"
+#include "textile_handling/lab/material_fit.h"
 #include "textile_handling/lab/material_lab.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/thread_limit.h"
@@ -40,7 +42,7 @@ constexpr int kExitInternal = 5;
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
     "       [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]\n"
-    "       [--out DIR] [--threads N]\n";
+    "       [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
@@ -53,6 +55,7 @@ struct Options {
   std::string material = "cotton";
   std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever", "drape"};
   DrapeCoefficientProtocol drape;
+  std::vector<std::string> fit_models;
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
   std::string out_dir = "out/material_lab";
   int threads = 0;
@@ -99,6 +102,9 @@ std::string parseArguments(int argc, char** argv, Options& o) {
         o.directions.push_back(yarnDirectionFromString(t));
       }
       if (o.directions.empty()) return "--directions is empty";
+    } else if (a == "--fit") {
+      o.fit_models = splitList(value);
+      if (o.fit_models.empty()) return "--fit is empty";
     } else if (a == "--out") {
       o.out_dir = value;
     } else if (a == "--threads") {
@@ -136,6 +142,7 @@ int run(const Options& o) {
   try {
     sample.material = o.material == "cotton" ? Material::cotton() : loadMaterialYaml(o.material);
     ClothModelRegistry::instance().validate(sample.model);
+    for (const auto& m : o.fit_models) ClothModelRegistry::instance().validate(ClothModelSpec(m));
   } catch (const std::exception& e) {
     std::cerr << "material_lab: " << e.what() << "\n";
     return kExitBadInput;
@@ -175,6 +182,26 @@ int run(const Options& o) {
         return kExitBadInput;
       }
     }
+  // Fits need bending in both directions, shear and tensile (checked by fitMaterial).
+  std::vector<MaterialFitResult> fits;
+  for (const auto& m : o.fit_models) {
+    std::cout << "  fit " << m << " ..." << std::flush;
+    try {
+      fits.push_back(fitMaterial(report, ClothModelSpec(m), sample.spacing, sample.material.name + "_fit_" + m));
+      std::cout << (fits.back().converged ? " converged" : " NOT converged") << " after " << fits.back().iterations
+                << " lab runs\n";
+      if (!fits.back().converged) ++failed;
+      // The fitted model drapes the lab's disc sample too, for comparison with the tested model's drape.
+      if (!report.drape.empty()) {
+        LabSample fitted = fits.back().fitted.sample;
+        fits.back().fitted.drape.push_back(runDrapeCoefficient(fitted, o.drape));
+      }
+    } catch (const MaterialLabError& e) {
+      std::cout << " FAILED\n";
+      std::cerr << "material_lab: " << e.what() << "\n";
+      ++failed;
+    }
+  }
   const std::vector<LabFigure> figures = labFigures(report);
   std::cout << "figure,direction,unit,lab,material_file\n";
   for (const auto& f : figures)
@@ -210,6 +237,23 @@ int run(const Options& o) {
           << r.nodes << ',' << (r.rest_reached ? "true" : "false") << ',' << r.sim_time_s << ',' << r.steps << ','
           << r.wall_time_s << '\n';
       });
+    for (std::size_t k = 0; k < fits.size(); ++k) {
+      const std::string model = fits[k].fitted.sample.model.name;
+      writeFileAtomically(d + "/fitted_" + model + ".yaml", [&](std::ostream& f) {
+        f << "# Fitted by material_lab: " << model << " with this material reproduces B, G and EMT of "
+          << sample.model.text() << " (" << sample.material.name << ") at d = " << sample.spacing << " m"
+          << (fits[k].converged ? "" : " (NOT converged)") << "\n"
+          << materialToYaml(fits[k].material);
+      });
+      writeFileAtomically(d + "/fit_" + model + ".csv", [&](std::ostream& f) {
+        f.precision(8);
+        f << "figure,target,fitted,factor\n";
+        for (const auto& g : fits[k].figures) f << g.name << ',' << g.target << ',' << g.fitted << ',' << g.factor << '\n';
+        // Not fitted: how the fitted model drapes the disc sample against the tested model.
+        if (!report.drape.empty() && !fits[k].fitted.drape.empty())
+          f << "DC," << report.drape.front().drape_coefficient << ',' << fits[k].fitted.drape.front().drape_coefficient << ",\n";
+      });
+    }
     const std::string title = sample.model.name + ", " + sample.material.name;
     if (!b.empty()) chart(d + "/bending.png", b, 1, "curvature [1/cm]", "moment [gf cm/cm]", "KES-FB2 bending: " + title);
     if (!s.empty()) chart(d + "/shear.png", s, 180 / kPi, "shear angle [deg]", "force [gf/cm]", "KES-FB1 shear: " + title);

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "textile_handling/lab/lab_material.h"
+#include "textile_handling/lab/material_fit.h"
 #include "textile_handling/lab/material_lab.h"
 #include "textile_handling/sim/sim_errors.h"
 
@@ -185,6 +186,48 @@ TEST(MaterialLabDrape, StifferClothDrapesWiderAndARigidSheetStaysFlat) {
   const Real rigid = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 1e4, 1, 1, "rigid"), 0.002)).drape_coefficient;
   EXPECT_GT(rigid, 0.97);
   EXPECT_LE(rigid, 1.0 + 1e-9);
+}
+
+// The yarn model's lab figures with short cycles (20 steps per quarter, fits in seconds).
+LabReport yarnReport(const std::string& weave, const MaterialFitOptions& o) {
+  LabReport target;
+  target.sample.model = ClothModelSpec("yarn_woven").set("weave", weave);
+  target.sample.spacing = 0.002;
+  target.bending = {runKesBending(target.sample, YarnDirection::kWarp, o.bending),
+                    runKesBending(target.sample, YarnDirection::kWeft, o.bending)};
+  target.shear = {runKesShear(target.sample, YarnDirection::kWarp, o.shear)};
+  target.tensile = {runKesTensile(target.sample, YarnDirection::kWarp, o.tensile)};
+  return target;
+}
+
+TEST(MaterialFit, ParticleAndChoiKoMaterialsReproduceTheYarnModelsFiguresAndTellWeavesApart) {
+  MaterialFitOptions o;
+  o.bending.steps_per_quarter = 20;
+  o.shear.steps_per_quarter = 20;
+  o.tensile.strain_step = 2e-3;
+  const LabReport plain = yarnReport("plain", o), satin = yarnReport("satin_5", o);
+  // The weaves differ in shear (plain 0.52, satin 0.22 gf/(cm deg) at the full protocol), not in bending.
+  EXPECT_GT(plain.shear[0].G, 1.5 * satin.shear[0].G);
+  for (const std::string model : {"particle_kes", "choi_ko"}) {
+    const MaterialFitResult fp = fitMaterial(plain, ClothModelSpec(model), 0.002, "plain_fit", o);
+    const MaterialFitResult fs = fitMaterial(satin, ClothModelSpec(model), 0.002, "satin_fit", o);
+    for (const MaterialFitResult* f : {&fp, &fs}) {
+      EXPECT_TRUE(f->converged) << model;
+      ASSERT_EQ(f->figures.size(), 4u);
+      for (const auto& g : f->figures) EXPECT_LT(relativeError(g.fitted, g.target), o.tolerance) << model << " " << g.name;
+      // A normal material file: it validates and round-trips.
+      std::string error;
+      EXPECT_TRUE(f->material.validate(&error)) << error;
+      EXPECT_EQ(parseMaterialYaml(materialToYaml(f->material)), f->material);
+    }
+    EXPECT_GT(materialKesG(fp.material, YarnDirection::kWarp), 1.5 * materialKesG(fs.material, YarnDirection::kWarp)) << model;
+  }
+  // The particle model's first guess (the measured curves) is already close: it converges in at most two runs.
+  EXPECT_LE(fitMaterial(plain, ClothModelSpec("particle_kes"), 0.002, "p", o).iterations, 2);
+  // A target without a tensile test cannot be fitted.
+  LabReport partial = plain;
+  partial.tensile.clear();
+  EXPECT_THROW(fitMaterial(partial, ClothModelSpec("particle_kes"), 0.002, "p", o), MaterialLabError);
 }
 
 template <typename F>

@@ -1,0 +1,121 @@
+// Material fitting across scales (material_fit.h).
+#include "textile_handling/lab/material_fit.h"
+
+#include <cmath>
+
+namespace textile_handling {
+namespace lab {
+namespace {
+
+const KesBendingResult* findBending(const LabReport& r, YarnDirection d) {
+  for (const auto& b : r.bending)
+    if (b.direction == d) return &b;
+  return nullptr;
+}
+
+Real meanG(const LabReport& r) {
+  Real g = 0;
+  for (const auto& s : r.shear) g += s.G;
+  return g / static_cast<Real>(r.shear.size());
+}
+
+Real meanEMT(const LabReport& r) {
+  Real e = 0;
+  for (const auto& t : r.tensile) e += t.EMT;
+  return e / static_cast<Real>(r.tensile.size());
+}
+
+// One fitted quantity: its factor, the secant's memory and the response exponent guess.
+struct Knob {
+  Real target = 0;
+  Real factor = 1;
+  Real exponent = 1;  // d log(figure) / d log(factor), refined by the secant
+  Real last_factor = 0, last_value = 0;
+
+  // The next factor for the measured `value` at `factor`.
+  void update(Real value) {
+    if (last_factor > 0 && std::abs(std::log(factor / last_factor)) > 1e-9) {
+      const Real p = std::log(value / last_value) / std::log(factor / last_factor);
+      // Keep the sign of the first guess and a sane magnitude; a flat response would step forever.
+      if (p * exponent > 0 && std::abs(p) > 0.05 && std::abs(p) < 20) exponent = p;
+    }
+    last_factor = factor;
+    last_value = value;
+    factor *= std::pow(target / value, 1 / exponent);
+  }
+};
+
+}  // namespace
+
+MaterialFitResult fitMaterial(const LabReport& target, const ClothModelSpec& model, Real spacing,
+                              const std::string& name, const MaterialFitOptions& options) {
+  const KesBendingResult* bw = findBending(target, YarnDirection::kWarp);
+  const KesBendingResult* bf = findBending(target, YarnDirection::kWeft);
+  if (!bw || !bf || target.shear.empty() || target.tensile.empty())
+    throw MaterialLabError("fit: the target report needs bending in both directions, shear and tensile");
+  if (options.max_iterations < 1 || options.max_iterations > 50) throw MaterialLabError("fit.max_iterations must be in [1, 50]");
+  if (!std::isfinite(options.tolerance) || !(options.tolerance > 0)) throw MaterialLabError("fit.tolerance must be finite and > 0");
+  for (const Real v : {bw->B, bf->B, meanG(target), meanEMT(target)})
+    if (!std::isfinite(v) || !(v > 0)) throw MaterialLabError("fit: the target's B, G and EMT must be finite and > 0");
+
+  const Material start = measuredMaterial(target, name);
+  Knob kb_warp{bw->B}, kb_weft{bf->B}, kg{meanG(target)}, ke{meanEMT(target)};
+  ke.exponent = -0.25;  // the particle model's quartic law; the secant corrects it for other laws
+  MaterialFitResult result;
+  LabSample sample;
+  sample.model = model;
+  sample.spacing = spacing;
+  auto material = [&] {
+    Material m = start;
+    m.bend_warp = scaledCurve(start.bend_warp, kb_warp.factor);
+    m.bend_weft = scaledCurve(start.bend_weft, kb_weft.factor);
+    m.shear_warp = scaledCurve(start.shear_warp, kg.factor);
+    m.shear_weft = scaledCurve(start.shear_weft, kg.factor);
+    m.tension_stiffness = start.tension_stiffness * ke.factor;
+    return m;
+  };
+  for (int it = 0; it < options.max_iterations; ++it) {
+    LabReport run;
+    // A model far too soft in tension never reaches F_max: stiffen by 10x (at most 8 times) until it does.
+    for (int tries = 0;; ++tries) {
+      sample.material = material();
+      try {
+        run.tensile = {runKesTensile(sample, YarnDirection::kWarp, options.tensile)};
+        break;
+      } catch (const MaterialLabError&) {
+        if (tries == 8) throw;
+        ke.factor *= 10;
+        ke.last_factor = 0;
+      }
+    }
+    const Material m = sample.material;
+    run.sample = sample;
+    run.bending = {runKesBending(sample, YarnDirection::kWarp, options.bending),
+                   runKesBending(sample, YarnDirection::kWeft, options.bending)};
+    run.shear = {runKesShear(sample, YarnDirection::kWarp, options.shear)};
+    result.material = m;
+    result.fitted = run;
+    result.iterations = it + 1;
+    const Real values[4] = {run.bending[0].B, run.bending[1].B, meanG(run), meanEMT(run)};
+    Knob* knobs[4] = {&kb_warp, &kb_weft, &kg, &ke};
+    const char* names[4] = {"B_warp", "B_weft", "G", "EMT"};
+    result.figures.clear();
+    bool all = true;
+    for (int k = 0; k < 4; ++k) {
+      result.figures.push_back({names[k], knobs[k]->target, values[k], knobs[k]->factor});
+      if (!(std::abs(values[k] - knobs[k]->target) <= options.tolerance * knobs[k]->target)) all = false;
+    }
+    if (all) {
+      result.converged = true;
+      break;
+    }
+    for (int k = 0; k < 4; ++k)
+      if (!(values[k] > 0) || !std::isfinite(values[k]))
+        throw MaterialLabError(std::string("fit: the fitted model's ") + names[k] + " is not positive");
+    for (int k = 0; k < 4; ++k) knobs[k]->update(values[k]);
+  }
+  return result;
+}
+
+}  // namespace lab
+}  // namespace textile_handling
