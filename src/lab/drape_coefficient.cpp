@@ -18,8 +18,8 @@ constexpr int kCircleVertices = 256;
 constexpr long kMaxShadowPixels = 20000000;
 
 // Area [m^2] covered by the vertical projection of the grid's cells (two triangles each) at `positions`,
-// on a raster of `pixel` [m].
-Real shadowArea(const ParticleGrid& grid, const VecX& positions, Real pixel) {
+// on a raster of `pixel` [m]; with `only` non-empty, of the cells whose four nodes it flags.
+Real shadowArea(const ParticleGrid& grid, const VecX& positions, Real pixel, const std::vector<char>& only = {}) {
   const Index n = grid.numActive();
   Real x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (Index i = 0; i < n; ++i) {
@@ -55,6 +55,7 @@ Real shadowArea(const ParticleGrid& grid, const VecX& positions, Real pixel) {
       const Index a = grid.activeIndex(r, c), b = grid.activeIndex(r, c + 1), d = grid.activeIndex(r + 1, c),
                   e = grid.activeIndex(r + 1, c + 1);
       if (a < 0 || b < 0 || d < 0 || e < 0) continue;
+      if (!only.empty() && !(only[a] && only[b] && only[d] && only[e])) continue;
       fill(a, b, e);
       fill(a, e, d);
     }
@@ -113,11 +114,13 @@ DrapeCoefficientResult runDrapeCoefficient(const LabSample& sample_in, const Dra
   std::uniform_real_distribution<Real> noise(-1, 1);
   VecX p(3 * n);
   PinnedNodes pins;
+  std::vector<char> on_disc_flags(static_cast<std::size_t>(n), 0);
   for (Index i = 0; i < n; ++i) {
     const Vec2 q = grid.activePosition(i) - centre;
     const bool on_disc = q.norm() <= disc;
     p.segment<3>(3 * i) = Vec3(q.x(), q.y(), on_disc ? 0 : protocol.perturbation_m * noise(rng));
     if (on_disc) {
+      on_disc_flags[static_cast<std::size_t>(i)] = 1;
       pins.nodes.push_back(i);
       pins.anchors.push_back(p.segment<3>(3 * i));
     }
@@ -140,7 +143,8 @@ DrapeCoefficientResult runDrapeCoefficient(const LabSample& sample_in, const Dra
   result.rest_reached = run.rest_reached;
   result.sim_time_s = run.sim_time;
   result.steps = run.steps;
-  result.disc_area_m2 = kPi * disc * disc;
+  // The disc's shadow measured as the sample's: the cells held on it (a limp sample then reads 0).
+  result.disc_area_m2 = shadowArea(grid, p, protocol.shadow_pixel_m, on_disc_flags);
   result.sample_area_m2 = shadowArea(grid, p, protocol.shadow_pixel_m);
   result.shadow_area_m2 = shadowArea(grid, sim.positions(), protocol.shadow_pixel_m);
   result.drape_coefficient = (result.shadow_area_m2 - result.disc_area_m2) / (result.sample_area_m2 - result.disc_area_m2);

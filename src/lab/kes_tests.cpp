@@ -76,6 +76,12 @@ KesBendingResult runKesBending(const LabSample& sample, YarnDirection direction,
   const int cb = cellsFor(protocol.width_cm * 0.01, d, 1, "bending.width_cm");
   InteriorResponse response(sample, direction, ca, cb, true);
   const Real kmax = protocol.max_curvature_per_cm * 100;  // 1/m
+  // Nodes a chord d apart on a circle of radius 1/kappa need kappa d <= 2; kappa d <= 1 keeps the angle
+  // the nodes see within 5 % of the circle's curvature.
+  if (kmax * d > 1)
+    throw MaterialLabError("bending: the sample spacing d = " + std::to_string(d) + " m is too coarse for bending.max_curvature_per_cm = " +
+                           std::to_string(protocol.max_curvature_per_cm) + " (needs kappa_max d <= 1, d <= " +
+                           std::to_string(1 / kmax) + " m)");
   const std::vector<Real> q = symmetricCycle(kmax, protocol.steps_per_quarter);
   const SpecimenMap map = [d](Real a, Real b, Real kappa) {
     Vec3 p = arcPoint(a, kappa, d);

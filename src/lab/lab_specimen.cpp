@@ -83,6 +83,7 @@ LabSample settlingSample(const LabSample& sample) {
   const ClothModelDescriptor& d = ClothModelRegistry::instance().find(s.model.name);
   if (d.hasOptionKey("settle_damping_per_s") && !s.model.options.count("settle_damping_per_s"))
     s.model.set("settle_damping_per_s", Real(4));
+  if (d.hasOptionKey("jacobian") && !s.model.options.count("jacobian")) s.model.set("jacobian", "definite_fix");
   return s;
 }
 

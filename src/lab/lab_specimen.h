@@ -59,8 +59,9 @@ class InteriorResponse {
   Real area_ = 0;
 };
 
-/// `sample` with settling damping 4/s where the model has the key `settle_damping_per_s` and the sample
-/// does not set it (an equilibrium does not depend on it; a dynamic settle needs it).
+/// `sample` as settlingModelSpec() sets up a settle, for the keys the sample does not set: damping 4/s
+/// where the model has `settle_damping_per_s` (an equilibrium does not depend on it) and the definite-fix
+/// Jacobian where it has `jacobian` (implicit steps far from equilibrium need it).
 LabSample settlingSample(const LabSample& sample);
 
 /// The path 0 -> +max -> -max -> 0 in `steps_per_quarter` increments per quarter (4 n + 1 values).

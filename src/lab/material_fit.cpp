@@ -19,10 +19,28 @@ Real meanG(const LabReport& r) {
   return g / static_cast<Real>(r.shear.size());
 }
 
-Real meanEMT(const LabReport& r) {
+// Strain [%] at force per width `force` [gf/cm] on the loading branch of a tensile cycle; 0 = EMT.
+Real strainAt(const KesTensileResult& t, Real force) {
+  if (force <= 0) return t.EMT;
+  for (std::size_t k = 0; k + 1 < t.cycle.size() && t.cycle[k + 1].x > t.cycle[k].x; ++k) {
+    const CurvePoint a = t.cycle[k], b = t.cycle[k + 1];
+    if (a.y <= force && force <= b.y && b.y > a.y) return 100 * (a.x + (force - a.y) / (b.y - a.y) * (b.x - a.x));
+  }
+  throw MaterialLabError("fit: the tensile curve does not pass " + std::to_string(force) + " gf/cm while loading");
+}
+
+Real meanStrain(const LabReport& r, Real force) {
   Real e = 0;
-  for (const auto& t : r.tensile) e += t.EMT;
+  for (const auto& t : r.tensile) e += strainAt(t, force);
   return e / static_cast<Real>(r.tensile.size());
+}
+
+// "5", "2.5": a force for a figure name.
+std::string figureText(Real v) {
+  std::string t = std::to_string(v);
+  t.erase(t.find_last_not_of('0') + 1);
+  if (!t.empty() && t.back() == '.') t.pop_back();
+  return t;
 }
 
 // One fitted quantity: its factor, the secant's memory and the response exponent guess.
@@ -55,12 +73,14 @@ MaterialFitResult fitMaterial(const LabReport& target, const ClothModelSpec& mod
     throw MaterialLabError("fit: the target report needs bending in both directions, shear and tensile");
   if (options.max_iterations < 1 || options.max_iterations > 50) throw MaterialLabError("fit.max_iterations must be in [1, 50]");
   if (!std::isfinite(options.tolerance) || !(options.tolerance > 0)) throw MaterialLabError("fit.tolerance must be finite and > 0");
-  for (const Real v : {bw->B, bf->B, meanG(target), meanEMT(target)})
-    if (!std::isfinite(v) || !(v > 0)) throw MaterialLabError("fit: the target's B, G and EMT must be finite and > 0");
+  const Real force = options.tension_force_gf_per_cm;
+  if (!std::isfinite(force) || force < 0) throw MaterialLabError("fit.tension_force_gf_per_cm must be finite and >= 0");
+  for (const Real v : {bw->B, bf->B, meanG(target), meanStrain(target, force)})
+    if (!std::isfinite(v) || !(v > 0)) throw MaterialLabError("fit: the target's B, G and tensile figure must be finite and > 0");
 
   const Material start = measuredMaterial(target, name);
-  Knob kb_warp{bw->B}, kb_weft{bf->B}, kg{meanG(target)}, ke{meanEMT(target)};
-  ke.exponent = -0.25;  // the particle model's quartic law; the secant corrects it for other laws
+  Knob kb_warp{bw->B}, kb_weft{bf->B}, kg{meanG(target)}, ke{meanStrain(target, force)};
+  ke.exponent = -0.25;  // strain against Y under the particle model's quartic law; the secant corrects it
   MaterialFitResult result;
   LabSample sample;
   sample.model = model;
@@ -96,9 +116,10 @@ MaterialFitResult fitMaterial(const LabReport& target, const ClothModelSpec& mod
     result.material = m;
     result.fitted = run;
     result.iterations = it + 1;
-    const Real values[4] = {run.bending[0].B, run.bending[1].B, meanG(run), meanEMT(run)};
+    const Real values[4] = {run.bending[0].B, run.bending[1].B, meanG(run), meanStrain(run, force)};
     Knob* knobs[4] = {&kb_warp, &kb_weft, &kg, &ke};
-    const char* names[4] = {"B_warp", "B_weft", "G", "EMT"};
+    const std::string tensile_name = force > 0 ? "strain_at_" + figureText(force) + "gf_cm" : "EMT";
+    const char* names[4] = {"B_warp", "B_weft", "G", tensile_name.c_str()};
     result.figures.clear();
     bool all = true;
     for (int k = 0; k < 4; ++k) {

@@ -9,7 +9,7 @@
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
 // of both directions), drape.csv (the drape coefficient run), lab_material.yaml (the measured curves as a
 // material file) and, for every model of --fit, fitted_<model>.yaml (a material with which that model
-// reproduces the tested model's B, G and EMT) and fit_<model>.csv (target and fitted figures).
+// reproduces the tested model's B, G and strain at 5 gf/cm) and fit_<model>.csv (target and fitted figures).
 // Exit status: 0 done, 2 bad input or usage, 3 a test could not be completed, 4 outputs cannot be written,
 // 5 out of memory or another unexpected error.
 #include <cerrno>
@@ -240,7 +240,7 @@ int run(const Options& o) {
     for (std::size_t k = 0; k < fits.size(); ++k) {
       const std::string model = fits[k].fitted.sample.model.name;
       writeFileAtomically(d + "/fitted_" + model + ".yaml", [&](std::ostream& f) {
-        f << "# Fitted by material_lab: " << model << " with this material reproduces B, G and EMT of "
+        f << "# Fitted by material_lab: " << model << " with this material reproduces B, G and the tensile figure of "
           << sample.model.text() << " (" << sample.material.name << ") at d = " << sample.spacing << " m"
           << (fits[k].converged ? "" : " (NOT converged)") << "\n"
           << materialToYaml(fits[k].material);

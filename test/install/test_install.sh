@@ -10,7 +10,7 @@
 #   launch_files      every installed launch file parses; every launch file it includes, every node it runs
 #                     and every bag or YAML file it names resolve inside the prefix (or to another
 #                     installed package under /usr)
-#   tools             drape_db --help; drape_sim on a tiny scene (installed scene, installed material)
+#   tools             drape_db --help; drape_sim on a tiny scene (installed scene, installed material); material_lab
 #   downstream_build  a project that uses only the installed headers and the catkin exports builds and
 #                     runs (test/install/consumer: every installed header compiles; OpenCV, Eigen exported)
 #   demo              demo.launch with its installed default bag and installed printer, against a tiny
@@ -146,6 +146,9 @@ check_tools() {
     "$SHARE/config/scenes/towel_corner.yaml" > "$TMP/tiny_scene.yaml"
   in_prefix "'$BIN/drape_sim' '$TMP/tiny_scene.yaml' --out '$TMP/sim' --until 0.05"
   for f in result.yaml rest_positions.csv rest_shape.png state.txt; do test -s "$TMP/sim/$f"; done
+  # the material lab with the installed cotton file
+  in_prefix "'$BIN/material_lab' --material '$SHARE/data/materials/cotton.yaml' --tests shear --directions warp --out '$TMP/lab'"
+  for f in figures.csv shear_warp.csv shear.png; do test -s "$TMP/lab/$f"; done
 }
 
 check_downstream_build() {

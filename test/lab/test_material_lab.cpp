@@ -168,24 +168,26 @@ TEST(MaterialLabFigures, FiguresCarryTheMaterialValuesAndAreWrittenAsCsv) {
   EXPECT_NE(csv.str().find("\n2HB,weft,gf*cm/cm,"), std::string::npos);
 }
 
-TEST(MaterialLabDrape, StifferClothDrapesWiderAndARigidSheetStaysFlat) {
-  // Measured at d = 1 cm: cotton 0.76 (particle_kes); choi_ko 0.35 and yarn_woven 0.52 (docs/material_lab.md).
+TEST(MaterialLabDrape, StifferClothDrapesWiderAndAStiffSheetStaysNearlyFlat) {
+  // Measured at d = 1 cm: cotton 0.78; bending x0.1 0.62, x10 0.98 (docs/material_lab.md).
   const Material cotton = Material::cotton();
   const DrapeCoefficientResult base = runDrapeCoefficient(particleSample(cotton, 0.002));
   EXPECT_TRUE(base.rest_reached);
   EXPECT_GT(base.drape_coefficient, 0.3);
   EXPECT_LT(base.drape_coefficient, 0.95);
-  EXPECT_NEAR(base.disc_area_m2, kPi * 0.09 * 0.09, 1e-12);
+  // The disc's shadow is its held cells': within one cell row of the 9 cm disc.
+  EXPECT_GT(base.disc_area_m2, kPi * 0.08 * 0.08);
+  EXPECT_LT(base.disc_area_m2, kPi * 0.09 * 0.09);
   // The flat sample's shadow is the rasterised circle's cells: within one cell row of the circle.
   EXPECT_GT(base.sample_area_m2, kPi * 0.14 * 0.14);
   EXPECT_LT(base.sample_area_m2, kPi * 0.15 * 0.15);
   const Real limp = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 0.1, 1, 1, "limp"), 0.002)).drape_coefficient;
   const Real stiff = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 10, 1, 1, "stiff"), 0.002)).drape_coefficient;
   EXPECT_LT(limp, base.drape_coefficient - 0.1);
-  EXPECT_GT(stiff, base.drape_coefficient + 0.05);
-  const Real rigid = runDrapeCoefficient(particleSample(scaledMaterial(cotton, 1e4, 1, 1, "rigid"), 0.002)).drape_coefficient;
-  EXPECT_GT(rigid, 0.97);
-  EXPECT_LE(rigid, 1.0 + 1e-9);
+  EXPECT_GT(stiff, base.drape_coefficient + 0.1);
+  // Ten times cotton's bending barely droops; the shadow can exceed the flat sample's only by stretch.
+  EXPECT_GT(stiff, 0.95);
+  EXPECT_LT(stiff, 1.01);
 }
 
 // The yarn model's lab figures with short cycles (20 steps per quarter, fits in seconds).
@@ -204,7 +206,6 @@ TEST(MaterialFit, ParticleAndChoiKoMaterialsReproduceTheYarnModelsFiguresAndTell
   MaterialFitOptions o;
   o.bending.steps_per_quarter = 20;
   o.shear.steps_per_quarter = 20;
-  o.tensile.strain_step = 2e-3;
   const LabReport plain = yarnReport("plain", o), satin = yarnReport("satin_5", o);
   // The weaves differ in shear (plain 0.52, satin 0.22 gf/(cm deg) at the full protocol), not in bending.
   EXPECT_GT(plain.shear[0].G, 1.5 * satin.shear[0].G);
@@ -222,8 +223,17 @@ TEST(MaterialFit, ParticleAndChoiKoMaterialsReproduceTheYarnModelsFiguresAndTell
     }
     EXPECT_GT(materialKesG(fp.material, YarnDirection::kWarp), 1.5 * materialKesG(fs.material, YarnDirection::kWarp)) << model;
   }
-  // The particle model's first guess (the measured curves) is already close: it converges in at most two runs.
-  EXPECT_LE(fitMaterial(plain, ClothModelSpec("particle_kes"), 0.002, "p", o).iterations, 2);
+  // Fitting EMT instead of the strain at 5 gf/cm: the particle model's quartic law matches the yarn model's
+  // nearly linear curve at F_max with a tension stiffness about 1e6 times lower, 100 times more stretch
+  // under a drape's own weight.
+  MaterialFitOptions at_fmax = o;
+  at_fmax.tension_force_gf_per_cm = 0;
+  const MaterialFitResult emt = fitMaterial(plain, ClothModelSpec("particle_kes"), 0.002, "p", at_fmax);
+  const MaterialFitResult low = fitMaterial(plain, ClothModelSpec("particle_kes"), 0.002, "p", o);
+  EXPECT_TRUE(emt.converged);
+  EXPECT_EQ(emt.figures[3].name, "EMT");
+  EXPECT_EQ(low.figures[3].name, "strain_at_5gf_cm");
+  EXPECT_GT(low.material.tension_stiffness, 1e4 * emt.material.tension_stiffness);
   // A target without a tensile test cannot be fitted.
   LabReport partial = plain;
   partial.tensile.clear();

@@ -12,8 +12,14 @@ namespace lab {
 
 struct MaterialFitOptions {
   int max_iterations = 8;
-  /// Converged when every fitted figure (B per direction, G, EMT) is within this relative error.
+  /// Converged when every fitted figure (B per direction, G, the tensile figure) is within this relative error.
   Real tolerance = 0.01;
+  /// The tensile figure: the strain at this force per width [gf/cm] on the loading curve. A drape loads
+  /// cloth with its own weight, a few gf/cm (5 gf/cm = 4.9 N/m, the top of 2 m of 250 g/m^2 cotton), far
+  /// below KES's F_max of 500 gf/cm, and a law of another shape (the particle model's quartic F = Y e^4
+  /// against the yarn model's nearly linear curve) that matches at F_max is 100 times too stretchy there.
+  /// 0 = fit EMT (the strain at F_max) instead.
+  Real tension_force_gf_per_cm = 5;
   KesBendingProtocol bending;
   KesShearProtocol shear;
   KesTensileProtocol tensile;
@@ -21,7 +27,7 @@ struct MaterialFitOptions {
 
 /// One fitted figure: the target model's value and the fitted model's after the last iteration.
 struct FittedFigure {
-  std::string name;  ///< B_warp, B_weft, G, EMT
+  std::string name;  ///< B_warp, B_weft, G, and strain_at_<F>gf_cm or EMT
   Real target = 0;
   Real fitted = 0;
   Real factor = 1;   ///< scale of the starting material's curve (or tension stiffness) that gives it
@@ -40,7 +46,8 @@ struct MaterialFitResult {
 /// (its curves; density of the target model). Then, per iteration, the lab runs `model` on the material
 /// and each figure's factor is updated by a power-law secant step in log space: the warp and weft
 /// bending curves for B_warp and B_weft, both shear curves together for the mean G (the particle-level
-/// models shear with the mean of the two curves), and the tension stiffness for the mean EMT.
+/// models shear with the mean of the two curves), and the tension stiffness for the mean strain at
+/// options.tension_force_gf_per_cm (or the mean EMT).
 /// The curves keep the target's shape; a model whose response has another shape (Choi-Ko's bending is
 /// soft below 0.3 1/cm) matches the figures, not the whole curves. Throws MaterialLabError if `target`
 /// lacks a test, and the lab's errors.

@@ -190,7 +190,7 @@ struct DrapeCoefficientResult {
   Real drape_coefficient = 0;     ///< (A_shadow - A_disc) / (A_sample - A_disc) [-]
   Real shadow_area_m2 = 0;        ///< vertical projection of the draped sample
   Real sample_area_m2 = 0;        ///< the same projection of the flat sample
-  Real disc_area_m2 = 0;
+  Real disc_area_m2 = 0;          ///< the same projection of the cells held on the disc
   Index nodes = 0;
   bool rest_reached = false;      ///< false: the settle stopped at max_time_s (the figure is still reported)
   Real sim_time_s = 0;

@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Reproduces this directory: material_lab on the three models at d = 2 mm (the drape coefficient at 1 cm) (cotton for the particle-level
+# models, the bundled woven fabrics for the yarn model, each fitted by particle_kes and choi_ko). Run from the repository root after setup.sh.
+set -u
+LAB=.build/ws/devel/lib/textile_handling/material_lab
+OUT=bench/results/2026-12-06-material-lab
+export OMP_WAIT_POLICY=passive
+$LAB --model particle_kes --out $OUT/particle_kes_cotton > $OUT/particle_kes_cotton.log 2>&1; echo "particle_kes exit $?" >> $OUT/exit_codes.txt
+$LAB --model choi_ko --out $OUT/choi_ko_cotton > $OUT/choi_ko_cotton.log 2>&1; echo "choi_ko exit $?" >> $OUT/exit_codes.txt
+for weave in plain twill_2_2 satin_5; do
+  $LAB --model yarn_woven --model-option weave=$weave --tests bending,shear,tensile,drape --fit particle_kes,choi_ko --out $OUT/yarn_woven_$weave \
+    > $OUT/yarn_woven_$weave.log 2>&1; echo "yarn_woven $weave exit $?" >> $OUT/exit_codes.txt
+done
+# The plain fabric measured and draped at one resolution, 4 mm (the finest at which the 1 cm yarn drape
+# and the KES bending arc, kappa d <= 1 at 2.5 1/cm, both run), with both fits.
+$LAB --model yarn_woven --model-option weave=plain --spacing 0.004 --drape-spacing 0.004 --tests bending,shear,tensile,drape \
+  --fit particle_kes,choi_ko --out $OUT/yarn_woven_plain_4mm > $OUT/yarn_woven_plain_4mm.log 2>&1; echo "yarn_woven plain 4 mm exit $?" >> $OUT/exit_codes.txt
