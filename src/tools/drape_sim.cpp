@@ -16,13 +16,13 @@
 #include <cstdlib>
 #include <iostream>
 #include <limits>
-#include <new>
 #include <string>
 
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/rest_shape_picture.h"
 #include "textile_handling/sim/thread_limit.h"
+#include "tool_main.h"
 
 using namespace textile_handling;
 
@@ -31,7 +31,6 @@ namespace {
 constexpr int kExitBadInput = 2;
 constexpr int kExitDiverged = 3;
 constexpr int kExitOutput = 4;
-constexpr int kExitInternal = 5;
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "drape_sim: " << problem << "\n";
@@ -224,13 +223,5 @@ int main(int argc, char** argv) {
   Options options;
   const std::string problem = parseArguments(argc, argv, options);
   if (!problem.empty()) return usage(argv[0], problem);
-  // Nothing escapes main: an allocation failure or an unexpected error is reported with its own code.
-  try {
-    return run(options);
-  } catch (const std::bad_alloc&) {
-    std::cerr << "drape_sim: out of memory (use a coarser spacing_m or a smaller --memory-budget-mb)\n";
-  } catch (const std::exception& e) {
-    std::cerr << "drape_sim: unexpected error: " << e.what() << "\n";
-  }
-  return kExitInternal;
+  return runGuarded("drape_sim", "use a coarser spacing_m or a smaller --memory-budget-mb", [&] { return run(options); });
 }

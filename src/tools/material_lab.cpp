@@ -17,7 +17,6 @@
 #include <cstdlib>
 #include <iostream>
 #include <map>
-#include <new>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -28,6 +27,7 @@
 #include "textile_handling/lab/material_lab.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/thread_limit.h"
+#include "tool_main.h"
 
 using namespace textile_handling;
 using namespace textile_handling::lab;
@@ -37,7 +37,6 @@ namespace {
 constexpr int kExitBadInput = 2;
 constexpr int kExitTestFailed = 3;
 constexpr int kExitOutput = 4;
-constexpr int kExitInternal = 5;
 
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
@@ -282,12 +281,5 @@ int main(int argc, char** argv) {
   Options options;
   const std::string problem = parseArguments(argc, argv, options);
   if (!problem.empty()) return usage(argv[0], problem);
-  try {
-    return run(options);
-  } catch (const std::bad_alloc&) {
-    std::cerr << "material_lab: out of memory (use a coarser --spacing)\n";
-  } catch (const std::exception& e) {
-    std::cerr << "material_lab: unexpected error: " << e.what() << "\n";
-  }
-  return kExitInternal;
+  return runGuarded("material_lab", "use a coarser --spacing", [&] { return run(options); });
 }

@@ -16,9 +16,9 @@ using textile_handling::tool_process::runTool;
 const std::string kMaterialLab = MATERIAL_LAB_EXE;
 
 TEST(MaterialLabCli, BadArgumentsExitWithTwoNamingTheOption) {
-  const auto r1 = runTool(kMaterialLab, {"--tests", "bending,drape"});
+  const auto r1 = runTool(kMaterialLab, {"--tests", "bending,twist"});
   EXPECT_EQ(r1.exit_code, 2);
-  EXPECT_NE(r1.err.find("unknown test 'drape'"), std::string::npos) << r1.err;
+  EXPECT_NE(r1.err.find("unknown test 'twist'"), std::string::npos) << r1.err;
   const auto r2 = runTool(kMaterialLab, {"--spacing", "nan"});
   EXPECT_EQ(r2.exit_code, 2);
   EXPECT_NE(r2.err.find("--spacing"), std::string::npos) << r2.err;
