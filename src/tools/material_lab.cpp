@@ -3,7 +3,7 @@
 //
 //   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
 //                [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]
-//                [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
+//                [--shear-max-angle DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
 //
 // Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
@@ -41,7 +41,7 @@ constexpr int kExitOutput = 4;
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
     "       [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]\n"
-    "       [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
+    "       [--shear-max-angle DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
@@ -54,6 +54,7 @@ struct Options {
   std::string material = "cotton";
   std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever", "drape"};
   DrapeCoefficientProtocol drape;
+  KesShearProtocol shear;
   std::vector<std::string> fit_models;
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
   std::string out_dir = "out/material_lab";
@@ -101,6 +102,13 @@ std::string parseArguments(int argc, char** argv, Options& o) {
         o.directions.push_back(yarnDirectionFromString(t));
       }
       if (o.directions.empty()) return "--directions is empty";
+    } else if (a == "--shear-max-angle") {
+      char* end = nullptr;
+      errno = 0;
+      const double deg = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(deg) || !(deg >= 5) || !(deg <= 45))
+        return "--shear-max-angle must be a number of degrees in [5, 45] (shear.max_angle_deg), got '" + value + "'";
+      o.shear.max_angle_deg = deg;
     } else if (a == "--fit") {
       o.fit_models = splitList(value);
       if (o.fit_models.empty()) return "--fit is empty";
@@ -167,7 +175,7 @@ int run(const Options& o) {
       try {
         if (test == "drape") report.drape.push_back(runDrapeCoefficient(sample, o.drape));
         if (test == "bending") report.bending.push_back(runKesBending(sample, dir));
-        if (test == "shear") report.shear.push_back(runKesShear(sample, dir));
+        if (test == "shear") report.shear.push_back(runKesShear(sample, dir, o.shear));
         if (test == "tensile") report.tensile.push_back(runKesTensile(sample, dir));
         if (test == "cantilever") report.cantilever.push_back(runCantilever(sample, dir));
         std::cout << " done\n";

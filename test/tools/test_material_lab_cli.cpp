@@ -30,11 +30,14 @@ TEST(MaterialLabCli, BadArgumentsExitWithTwoNamingTheOption) {
   EXPECT_NE(r4.err.find("/nonexistent/material.yaml"), std::string::npos) << r4.err;
   const auto r5 = runTool(kMaterialLab, {"--directions"});
   EXPECT_EQ(r5.exit_code, 2);
+  const auto r6 = runTool(kMaterialLab, {"--shear-max-angle", "60"});
+  EXPECT_EQ(r6.exit_code, 2);
+  EXPECT_NE(r6.err.find("shear.max_angle_deg"), std::string::npos) << r6.err;
 }
 
 TEST(MaterialLabCli, ARunWritesCurvesChartsFiguresAndTheMeasuredMaterial) {
   const std::string dir = textile_handling::test_support::freshTempDir("material_lab_cli");
-  const auto r = runTool(kMaterialLab, {"--tests", "bending,shear", "--directions", "warp", "--out", dir});
+  const auto r = runTool(kMaterialLab, {"--tests", "bending,shear", "--directions", "warp", "--shear-max-angle", "20", "--out", dir});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   for (const char* f : {"figures.csv", "bending_warp.csv", "shear_warp.csv", "bending.png", "shear.png", "lab_material.yaml"})
     EXPECT_TRUE(std::filesystem::is_regular_file(dir + "/" + f)) << f;
@@ -42,6 +45,9 @@ TEST(MaterialLabCli, ARunWritesCurvesChartsFiguresAndTheMeasuredMaterial) {
   EXPECT_NE(figures.find("\nB,warp,gf*cm^2/cm,"), std::string::npos) << figures;
   EXPECT_NE(figures.find("\nG,warp,gf/(cm*deg),"), std::string::npos) << figures;
   EXPECT_NE(readAll(dir + "/lab_material.yaml").find("name: cotton_lab"), std::string::npos);
+  // The shear cycle went to 20 degrees (0.349 rad): 4 n + 1 points, the n-th at the maximum.
+  const std::string shear = readAll(dir + "/shear_warp.csv");
+  EXPECT_NE(shear.find("\n0.3490658504,"), std::string::npos) << shear.substr(0, 400);
   std::filesystem::remove_all(dir);
 }
 

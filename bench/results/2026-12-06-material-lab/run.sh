@@ -15,3 +15,6 @@ done
 # and the KES bending arc, kappa d <= 1 at 2.5 1/cm, both run), with both fits.
 $LAB --model yarn_woven --model-option weave=plain --spacing 0.004 --drape-spacing 0.004 --tests bending,shear,tensile,drape \
   --fit particle_kes,choi_ko --out $OUT/yarn_woven_plain_4mm > $OUT/yarn_woven_plain_4mm.log 2>&1; echo "yarn_woven plain 4 mm exit $?" >> $OUT/exit_codes.txt
+# The plain fabric's trellis shear taken to 40 degrees (KES stops at 8).
+$LAB --model yarn_woven --model-option weave=plain --tests shear --directions warp --shear-max-angle 40 \
+  --out $OUT/yarn_woven_plain_shear40 > $OUT/yarn_woven_plain_shear40.log 2>&1; echo "yarn_woven plain shear to 40 deg exit $?" >> $OUT/exit_codes.txt
