@@ -18,3 +18,8 @@ $LAB --model yarn_woven --model-option weave=plain --spacing 0.004 --drape-spaci
 # The plain fabric's trellis shear taken to 40 degrees (KES stops at 8).
 $LAB --model yarn_woven --model-option weave=plain --tests shear --directions warp --shear-max-angle 40 \
   --out $OUT/yarn_woven_plain_shear40 > $OUT/yarn_woven_plain_shear40.log 2>&1; echo "yarn_woven plain shear to 40 deg exit $?" >> $OUT/exit_codes.txt
+# The plain fabric's drape (1 cm) with one crossing term of the yarn model switched off at a time.
+for opt in contact=false friction=false shear=false sliding_friction=0; do
+  $LAB --model yarn_woven --model-option weave=plain --model-option $opt --tests drape --out $OUT/yarn_woven_plain_drape_$opt \
+    > $OUT/yarn_woven_plain_drape_$opt.log 2>&1; echo "yarn_woven plain drape $opt exit $?" >> $OUT/exit_codes.txt
+done
