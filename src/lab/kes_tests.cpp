@@ -71,6 +71,8 @@ KesBendingResult runKesBending(const LabSample& sample, YarnDirection direction,
   checkPositive(protocol.max_curvature_per_cm, "bending.max_curvature_per_cm");
   if (protocol.max_curvature_per_cm < 1.5) throw MaterialLabError("bending.max_curvature_per_cm must be >= 1.5 (B is read between 0.5 and 1.5)");
   checkSteps(protocol.steps_per_quarter, "bending.steps_per_quarter");
+  if (!std::isfinite(protocol.bias_deg) || protocol.bias_deg < 0 || protocol.bias_deg > 90)
+    throw MaterialLabError("bending.bias_deg must be in [0, 90]");
   const Real d = sample.spacing;
   const int ca = cellsFor(protocol.length_cm * 0.01, d, 2, "bending.length_cm");
   const int cb = cellsFor(protocol.width_cm * 0.01, d, 1, "bending.width_cm");
@@ -83,10 +85,18 @@ KesBendingResult runKesBending(const LabSample& sample, YarnDirection direction,
                            std::to_string(protocol.max_curvature_per_cm) + " (needs kappa_max d <= 1, d <= " +
                            std::to_string(1 / kmax) + " m)");
   const std::vector<Real> q = symmetricCycle(kmax, protocol.steps_per_quarter);
-  const SpecimenMap map = [d](Real a, Real b, Real kappa) {
-    Vec3 p = arcPoint(a, kappa, d);
-    p.y() = b;
-    return p;
+  const Real bias = protocol.bias_deg * kDeg;
+  const Vec2 along(std::cos(bias), std::sin(bias)), across(-std::sin(bias), std::cos(bias));
+  const SpecimenMap map = [d, bias, along, across](Real a, Real b, Real kappa) {
+    if (bias == 0) {
+      Vec3 p = arcPoint(a, kappa, d);
+      p.y() = b;
+      return p;
+    }
+    // Isometric arc along `along`: arc length s, the across coordinate t unchanged.
+    const Real s = along.dot(Vec2(a, b)), t = across.dot(Vec2(a, b));
+    const Vec3 arc = arcPoint(s, kappa, 0);
+    return Vec3(arc.x() * along.x() + t * across.x(), arc.x() * along.y() + t * across.y(), arc.z());
   };
   const Real dq = 1e-3 * kmax / protocol.steps_per_quarter;
 
@@ -105,6 +115,8 @@ KesShearResult runKesShear(const LabSample& sample, YarnDirection direction, con
   checkPositive(protocol.max_angle_deg, "shear.max_angle_deg");
   if (protocol.max_angle_deg < 5 || protocol.max_angle_deg > 45) throw MaterialLabError("shear.max_angle_deg must be in [5, 45]");
   checkSteps(protocol.steps_per_quarter, "shear.steps_per_quarter");
+  if (!std::isfinite(protocol.pretension_strain) || protocol.pretension_strain < 0 || protocol.pretension_strain > 0.2)
+    throw MaterialLabError("shear.pretension_strain must be in [0, 0.2]");
   const Real d = sample.spacing;
   const int ca = cellsFor(protocol.length_cm * 0.01, d, 1, "shear.length_cm");
   const int cb = cellsFor(protocol.height_cm * 0.01, d, 1, "shear.height_cm");
@@ -112,7 +124,11 @@ KesShearResult runKesShear(const LabSample& sample, YarnDirection direction, con
   const Real tmax = protocol.max_angle_deg * kDeg;
   const std::vector<Real> q = symmetricCycle(tmax, protocol.steps_per_quarter);
   // Trellis shear: the yarns along the clamps (a) stay put, the crossing yarns turn by theta; both keep their length.
-  const SpecimenMap map = [](Real a, Real b, Real theta) { return Vec3(a + b * std::sin(theta), b * std::cos(theta), 0); };
+  // With pretension the crossing yarns are stretched by 1 + e as they turn.
+  const Real stretch = 1 + protocol.pretension_strain;
+  const SpecimenMap map = [stretch](Real a, Real b, Real theta) {
+    return Vec3(a + stretch * b * std::sin(theta), stretch * b * std::cos(theta), 0);
+  };
   const Real dq = 1e-3 * tmax / protocol.steps_per_quarter;
 
   KesShearResult r;

@@ -3,7 +3,7 @@
 //
 //   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
 //                [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]
-//                [--shear-max-angle DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
+//                [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
 //
 // Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
@@ -41,7 +41,7 @@ constexpr int kExitOutput = 4;
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
     "       [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]\n"
-    "       [--shear-max-angle DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
+    "       [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
@@ -55,6 +55,7 @@ struct Options {
   std::vector<std::string> tests = {"bending", "shear", "tensile", "cantilever", "drape"};
   DrapeCoefficientProtocol drape;
   KesShearProtocol shear;
+  KesBendingProtocol bending;
   std::vector<std::string> fit_models;
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
   std::string out_dir = "out/material_lab";
@@ -109,6 +110,20 @@ std::string parseArguments(int argc, char** argv, Options& o) {
       if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(deg) || !(deg >= 5) || !(deg <= 45))
         return "--shear-max-angle must be a number of degrees in [5, 45] (shear.max_angle_deg), got '" + value + "'";
       o.shear.max_angle_deg = deg;
+    } else if (a == "--shear-pretension-strain") {
+      char* end = nullptr;
+      errno = 0;
+      const double e = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(e) || !(e >= 0) || !(e <= 0.2))
+        return "--shear-pretension-strain must be a strain in [0, 0.2] (shear.pretension_strain), got '" + value + "'";
+      o.shear.pretension_strain = e;
+    } else if (a == "--bending-bias-deg") {
+      char* end = nullptr;
+      errno = 0;
+      const double deg = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(deg) || !(deg >= 0) || !(deg <= 90))
+        return "--bending-bias-deg must be a number of degrees in [0, 90] (bending.bias_deg), got '" + value + "'";
+      o.bending.bias_deg = deg;
     } else if (a == "--fit") {
       o.fit_models = splitList(value);
       if (o.fit_models.empty()) return "--fit is empty";
@@ -121,6 +136,9 @@ std::string parseArguments(int argc, char** argv, Options& o) {
       return "unknown option " + a;
     }
   }
+  if (!o.fit_models.empty() && (o.bending.bias_deg != 0 || o.shear.pretension_strain != 0 || o.shear.max_angle_deg != 8))
+    return "--fit fits the standard KES figures; it cannot be combined with --bending-bias-deg, --shear-pretension-strain "
+           "or --shear-max-angle";
   return "";
 }
 
@@ -174,7 +192,7 @@ int run(const Options& o) {
       std::cout << "  " << test << (test == "drape" ? "" : " " + toString(dir)) << " ..." << std::flush;
       try {
         if (test == "drape") report.drape.push_back(runDrapeCoefficient(sample, o.drape));
-        if (test == "bending") report.bending.push_back(runKesBending(sample, dir));
+        if (test == "bending") report.bending.push_back(runKesBending(sample, dir, o.bending));
         if (test == "shear") report.shear.push_back(runKesShear(sample, dir, o.shear));
         if (test == "tensile") report.tensile.push_back(runKesTensile(sample, dir));
         if (test == "cantilever") report.cantilever.push_back(runCantilever(sample, dir));

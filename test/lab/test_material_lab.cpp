@@ -61,6 +61,24 @@ TEST(MaterialLabKesBending, ParticleModelReproducesTheBendingCurvesOfCotton) {
               2.0, 1e-6);
 }
 
+TEST(MaterialLabKesBending, BiasBendingAtNinetyDegreesBendsTheOtherYarns) {
+  // A warp specimen bent along y bends the weft yarns: the weft test's B (the isometric arc lacks the
+  // chord arc's 2 asin(kappa d/2)/d excess, 2.8 % at d = 2 mm).
+  const Material cotton = Material::cotton();
+  KesBendingProtocol across;
+  across.bias_deg = 90;
+  across.steps_per_quarter = 20;
+  const Real b90 = runKesBending(particleSample(cotton, 0.002), YarnDirection::kWarp, across).B;
+  EXPECT_LT(relativeError(b90, materialKesB(cotton, YarnDirection::kWeft)), 0.01) << b90;
+  // On the bias the particle model bends both hinge directions partly: between the two yarns' B and
+  // above the half that hinge bending alone would give.
+  KesBendingProtocol bias = across;
+  bias.bias_deg = 45;
+  const Real b45 = runKesBending(particleSample(cotton, 0.002), YarnDirection::kWarp, bias).B;
+  EXPECT_LT(b45, materialKesB(cotton, YarnDirection::kWarp));
+  EXPECT_GT(b45, 0.25 * (materialKesB(cotton, YarnDirection::kWarp) + materialKesB(cotton, YarnDirection::kWeft)));
+}
+
 TEST(MaterialLabKesShear, ParticleModelReadsTheMeanOfItsShearCurves) {
   const Material cotton = Material::cotton();
   const Real mean = 0.5 * (materialKesG(cotton, YarnDirection::kWarp) + materialKesG(cotton, YarnDirection::kWeft));
@@ -69,6 +87,10 @@ TEST(MaterialLabKesShear, ParticleModelReadsTheMeanOfItsShearCurves) {
     EXPECT_LT(relativeError(r.G, mean), 0.01) << toString(dir) << " G " << r.G;
     EXPECT_LT(std::abs(r.twoHG) + std::abs(r.twoHG5), 1e-9);
   }
+  // A pretension stretches the crossing yarns without changing their angles: the same G.
+  KesShearProtocol pre;
+  pre.pretension_strain = 0.02;
+  EXPECT_LT(relativeError(runKesShear(particleSample(cotton, 0.002), YarnDirection::kWarp, pre).G, mean), 0.01);
 }
 
 TEST(MaterialLabKesTensile, ParticleModelFollowsItsQuarticStretchLaw) {
@@ -260,7 +282,13 @@ TEST(MaterialLabBadInput, ErrorsNameTheFieldAtFault) {
   bp = KesBendingProtocol{};
   bp.max_curvature_per_cm = 1.0;
   EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp, bp); }).find("bending.max_curvature_per_cm"), std::string::npos);
+  bp = KesBendingProtocol{};
+  bp.bias_deg = 100;
+  EXPECT_NE(errorOf([&] { runKesBending(s, YarnDirection::kWarp, bp); }).find("bending.bias_deg"), std::string::npos);
   KesShearProtocol sp;
+  sp.pretension_strain = 0.5;
+  EXPECT_NE(errorOf([&] { runKesShear(s, YarnDirection::kWarp, sp); }).find("shear.pretension_strain"), std::string::npos);
+  sp = KesShearProtocol{};
   sp.height_cm = -1;
   EXPECT_NE(errorOf([&] { runKesShear(s, YarnDirection::kWarp, sp); }).find("shear.height_cm"), std::string::npos);
   KesTensileProtocol tp;

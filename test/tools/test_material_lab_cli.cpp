@@ -33,6 +33,9 @@ TEST(MaterialLabCli, BadArgumentsExitWithTwoNamingTheOption) {
   const auto r6 = runTool(kMaterialLab, {"--shear-max-angle", "60"});
   EXPECT_EQ(r6.exit_code, 2);
   EXPECT_NE(r6.err.find("shear.max_angle_deg"), std::string::npos) << r6.err;
+  const auto r7 = runTool(kMaterialLab, {"--bending-bias-deg", "45", "--fit", "particle_kes"});
+  EXPECT_EQ(r7.exit_code, 2);
+  EXPECT_NE(r7.err.find("--fit"), std::string::npos) << r7.err;
 }
 
 TEST(MaterialLabCli, ARunWritesCurvesChartsFiguresAndTheMeasuredMaterial) {

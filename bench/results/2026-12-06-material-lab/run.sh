@@ -23,3 +23,13 @@ for opt in contact=false friction=false shear=false sliding_friction=0; do
   $LAB --model yarn_woven --model-option weave=plain --model-option $opt --tests drape --out $OUT/yarn_woven_plain_drape_$opt \
     > $OUT/yarn_woven_plain_drape_$opt.log 2>&1; echo "yarn_woven plain drape $opt exit $?" >> $OUT/exit_codes.txt
 done
+# Deformations the KES pieces do not impose: bending on the 45-degree bias (yarn plain and its two fits,
+# warp specimens), and shear under a 2 % pretension of the crossing yarns (yarn plain).
+$LAB --model yarn_woven --model-option weave=plain --tests bending --directions warp --bending-bias-deg 45 \
+  --out $OUT/bias45_yarn_woven_plain > $OUT/bias45_yarn_woven_plain.log 2>&1; echo "bias 45 yarn exit $?" >> $OUT/exit_codes.txt
+for m in particle_kes choi_ko; do
+  $LAB --model $m --material $OUT/yarn_woven_plain/fitted_$m.yaml --tests bending --directions warp --bending-bias-deg 45 \
+    --out $OUT/bias45_fitted_$m > $OUT/bias45_fitted_$m.log 2>&1; echo "bias 45 fitted $m exit $?" >> $OUT/exit_codes.txt
+done
+$LAB --model yarn_woven --model-option weave=plain --tests shear --directions warp --shear-pretension-strain 0.02 \
+  --out $OUT/pretension2pct_yarn_woven_plain > $OUT/pretension2pct_yarn_woven_plain.log 2>&1; echo "pretension yarn exit $?" >> $OUT/exit_codes.txt

@@ -71,6 +71,10 @@ struct KesBendingProtocol {
   Real width_cm = 1.0;            ///< sample width (KES: 20 cm; the figures are per unit width)
   Real max_curvature_per_cm = 2.5;  ///< KES-FB2 cycles to +-2.5 1/cm
   int steps_per_quarter = 50;     ///< curvature increments from 0 to max_curvature
+  /// Angle [deg] of the bending direction from the tested yarn direction, in [0, 90]. 0 is KES-FB2. At
+  /// another angle (45 = bias bending) the arc is laid isometrically along that direction: surface
+  /// distances kept, chords shortened to second order in kappa d.
+  Real bias_deg = 0;
 };
 
 struct KesBendingResult {
@@ -95,6 +99,10 @@ struct KesShearProtocol {
   Real height_cm = 2.0;           ///< distance between the clamps (KES: 5 cm)
   Real max_angle_deg = 8.0;       ///< KES-FB1 cycles to +-8 degrees
   int steps_per_quarter = 80;
+  /// Stretch [-] of the crossing yarns (across the clamps) held during the cycle. KES-FB1 shears under a
+  /// tension of 10 gf/cm; with imposed deformation a strain stands for it (a model's tensile curve gives
+  /// the strain of a tension). 0 = no pretension.
+  Real pretension_strain = 0;
 };
 
 struct KesShearResult {
