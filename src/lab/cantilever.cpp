@@ -5,6 +5,7 @@
 #include <string>
 
 #include "lab_specimen.h"
+#include "textile_handling/lab/lab_material.h"
 #include "textile_handling/sim/drape_simulation.h"
 
 namespace textile_handling {
@@ -200,8 +201,7 @@ CantileverResult runCantilever(const LabSample& sample, YarnDirection direction,
   result.overhang_m = d * (lo + (protocol.angle_deg - a_lo) / (a_hi - a_lo) * (hi - lo));
   result.bending_length_m = 0.5 * result.overhang_m;
   // Peirce's flexural rigidity with the specimen's own weight per area (any model's mass).
-  Specimen probe = makeSpecimen(sample, direction, 0, 4, cells_b);
-  const Real w = probe.model->totalMass() * kGravity / probe.area;
+  const Real w = sampleArealDensity(sample) * kGravity;
   result.flexural_rigidity_Nm = w * std::pow(result.bending_length_m, 3);
   return result;
 }

@@ -106,7 +106,7 @@ DrapeCoefficientResult runDrapeCoefficient(const LabSample& sample_in, const Dra
   std::unique_ptr<ClothModel> model =
       ClothModelRegistry::instance().create(sample.model, ParticleTopology::fromGrid(grid), sample.material);
   const Index n = grid.numActive();
-  // Centre of the sample = the centre of the node lattice's bounding box (symmetric rasterisation).
+  // Centre of the sample: the mean of its nodes (the rasterised circle is symmetric about it).
   Vec2 centre = Vec2::Zero();
   for (Index i = 0; i < n; ++i) centre += grid.activePosition(i);
   centre /= static_cast<Real>(n);

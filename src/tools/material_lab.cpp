@@ -70,6 +70,16 @@ std::vector<std::string> splitList(const std::string& text) {
   return out;
 }
 
+// A number in [lo, hi] with nothing after it; false otherwise.
+bool parseNumberIn(const std::string& text, double lo, double hi, double* value) {
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(v) || !(v >= lo) || !(v <= hi)) return false;
+  *value = v;
+  return true;
+}
+
 std::string parseArguments(int argc, char** argv, Options& o) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -84,10 +94,8 @@ std::string parseArguments(int argc, char** argv, Options& o) {
     } else if (a == "--material") {
       o.material = value;
     } else if (a == "--spacing" || a == "--drape-spacing") {
-      char* end = nullptr;
-      errno = 0;
-      const double d = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(d) || !(d >= 1e-4) || !(d <= 0.05))
+      double d = 0;
+      if (!parseNumberIn(value, 1e-4, 0.05, &d))
         return a + " must be a number of metres in [1e-4, 0.05], got '" + value + "'";
       (a == "--spacing" ? o.sample.spacing : o.drape.spacing_m) = d;
     } else if (a == "--tests") {
@@ -104,26 +112,14 @@ std::string parseArguments(int argc, char** argv, Options& o) {
       }
       if (o.directions.empty()) return "--directions is empty";
     } else if (a == "--shear-max-angle") {
-      char* end = nullptr;
-      errno = 0;
-      const double deg = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(deg) || !(deg >= 5) || !(deg <= 45))
+      if (!parseNumberIn(value, 5, 45, &o.shear.max_angle_deg))
         return "--shear-max-angle must be a number of degrees in [5, 45] (shear.max_angle_deg), got '" + value + "'";
-      o.shear.max_angle_deg = deg;
     } else if (a == "--shear-pretension-strain") {
-      char* end = nullptr;
-      errno = 0;
-      const double e = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(e) || !(e >= 0) || !(e <= 0.2))
+      if (!parseNumberIn(value, 0, 0.2, &o.shear.pretension_strain))
         return "--shear-pretension-strain must be a strain in [0, 0.2] (shear.pretension_strain), got '" + value + "'";
-      o.shear.pretension_strain = e;
     } else if (a == "--bending-bias-deg") {
-      char* end = nullptr;
-      errno = 0;
-      const double deg = std::strtod(value.c_str(), &end);
-      if (value.empty() || *end != '\0' || errno == ERANGE || !std::isfinite(deg) || !(deg >= 0) || !(deg <= 90))
+      if (!parseNumberIn(value, 0, 90, &o.bending.bias_deg))
         return "--bending-bias-deg must be a number of degrees in [0, 90] (bending.bias_deg), got '" + value + "'";
-      o.bending.bias_deg = deg;
     } else if (a == "--fit") {
       o.fit_models = splitList(value);
       if (o.fit_models.empty()) return "--fit is empty";
