@@ -1,0 +1,80 @@
+#include "textile_handling/db/drape_difference.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "textile_handling/sim/cloth_topology.h"
+#include "textile_handling/sim/grid_prolongation.h"
+#include "textile_handling/vision/bit_mask.h"
+#include "textile_handling/vision/vision_errors.h"
+
+namespace textile_handling {
+namespace db {
+namespace {
+
+constexpr const char* kFunction = "measureDrapeDifference";
+
+void checkDrape(const SimulatedDrape& d, const std::string& name) {
+  if (d.grid == nullptr || d.grid->empty() || d.grid->numActive() == 0)
+    throw vision::InvalidArgumentError(kFunction, name + ".grid", name + ".grid is null or empty");
+  if (d.positions.size() != 3 * static_cast<Eigen::Index>(d.grid->numActive()))
+    throw vision::InvalidArgumentError(kFunction, name + ".positions",
+                                       name + ".positions has " + std::to_string(d.positions.size()) +
+                                           " values, the grid needs 3 x " + std::to_string(d.grid->numActive()));
+  if (!d.positions.allFinite())
+    throw vision::InvalidArgumentError(kFunction, name + ".positions", name + ".positions holds a non-finite value");
+}
+
+}  // namespace
+
+DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedDrape& b, const Vec3& view_centre,
+                                       const DrapeDifferenceOptions& options) {
+  checkDrape(a, "a");
+  checkDrape(b, "b");
+  if (!view_centre.allFinite())
+    throw vision::InvalidArgumentError(kFunction, "view_centre", "view_centre is not finite");
+
+  // Node distances on the finer grid (fewer nodes = coarser; equal counts: a is "fine").
+  const bool a_fine = a.grid->numActive() >= b.grid->numActive();
+  const SimulatedDrape& fine = a_fine ? a : b;
+  const SimulatedDrape& coarse = a_fine ? b : a;
+  const VecX on_fine = prolongPositions(*coarse.grid, coarse.positions, *fine.grid);
+  DrapeDifference out;
+  const Index n = fine.grid->numActive();
+  Real sum = 0;
+  for (Index i = 0; i < n; ++i) {
+    const Real e = (on_fine.segment<3>(3 * i) - fine.positions.segment<3>(3 * i)).norm();
+    sum += e;
+    out.max_node_distance = std::max(out.max_node_distance, e);
+  }
+  out.mean_node_distance = sum / static_cast<Real>(n);
+  for (const Vec2& p : options.named_points) {
+    if (!p.allFinite())
+      throw vision::InvalidArgumentError(kFunction, "options.named_points", "a named point is not finite");
+    const Index i = fine.grid->nearestActive(p);
+    out.max_named_point_distance =
+        std::max(out.max_named_point_distance, (on_fine.segment<3>(3 * i) - fine.positions.segment<3>(3 * i)).norm());
+  }
+
+  // Silhouettes of both meshes, each on its own triangulation.
+  const std::vector<vision::Triangle> tri_a = vision::trianglesFromTopology(ParticleTopology::fromGrid(*a.grid));
+  const std::vector<vision::Triangle> tri_b = vision::trianglesFromTopology(ParticleTopology::fromGrid(*b.grid));
+  const std::vector<double> angles = options.views.angles();
+  out.min_iou = 1;
+  Real iou_sum = 0;
+  for (double az : angles) {
+    const vision::BitMask ma =
+        vision::renderSilhouette(a.positions, tri_a, view_centre, az, options.projection, options.frame);
+    const vision::BitMask mb =
+        vision::renderSilhouette(b.positions, tri_b, view_centre, az, options.projection, options.frame);
+    const Real v = vision::iou(ma, mb);
+    iou_sum += v;
+    out.min_iou = std::min(out.min_iou, v);
+  }
+  out.mean_iou = iou_sum / static_cast<Real>(angles.size());
+  return out;
+}
+
+}  // namespace db
+}  // namespace textile_handling
