@@ -37,10 +37,34 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
 
   // Node distances on the finer grid (fewer nodes = coarser; equal counts: a is "fine").
   const bool a_fine = a.grid->numActive() >= b.grid->numActive();
-  const SimulatedDrape& fine = a_fine ? a : b;
-  const SimulatedDrape& coarse = a_fine ? b : a;
-  const VecX on_fine = prolongPositions(*coarse.grid, coarse.positions, *fine.grid);
+  SimulatedDrape turned_a{a.grid, a.positions};
   DrapeDifference out;
+  if (options.align_yaw) {
+    const SimulatedDrape& fine0 = a_fine ? a : b;
+    const SimulatedDrape& coarse0 = a_fine ? b : a;
+    const VecX other = prolongPositions(*coarse0.grid, coarse0.positions, *fine0.grid);
+    const VecX& pa = a_fine ? a.positions : other;
+    const VecX& pb = a_fine ? other : b.positions;
+    // 2-D Procrustes about the axis: the angle maximising sum (R p_a) . p_b over horizontal offsets.
+    Real sin_sum = 0, cos_sum = 0;
+    for (Eigen::Index i = 0; i < pa.size() / 3; ++i) {
+      const Real ax = pa[3 * i] - view_centre.x(), ay = pa[3 * i + 1] - view_centre.y();
+      const Real bx = pb[3 * i] - view_centre.x(), by = pb[3 * i + 1] - view_centre.y();
+      cos_sum += ax * bx + ay * by;
+      sin_sum += ax * by - ay * bx;
+    }
+    const Real yaw = std::atan2(sin_sum, cos_sum);
+    const Real c = std::cos(yaw), s = std::sin(yaw);
+    for (Eigen::Index i = 0; i < a.positions.size() / 3; ++i) {
+      const Real x = a.positions[3 * i] - view_centre.x(), y = a.positions[3 * i + 1] - view_centre.y();
+      turned_a.positions[3 * i] = view_centre.x() + c * x - s * y;
+      turned_a.positions[3 * i + 1] = view_centre.y() + s * x + c * y;
+    }
+    out.yaw_deg = yaw * 180.0 / kPi;
+  }
+  const SimulatedDrape& fine = a_fine ? turned_a : b;
+  const SimulatedDrape& coarse = a_fine ? b : turned_a;
+  const VecX on_fine = prolongPositions(*coarse.grid, coarse.positions, *fine.grid);
   const Index n = fine.grid->numActive();
   Real sum = 0;
   for (Index i = 0; i < n; ++i) {
@@ -65,7 +89,7 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
   Real iou_sum = 0;
   for (double az : angles) {
     const vision::BitMask ma =
-        vision::renderSilhouette(a.positions, tri_a, view_centre, az, options.projection, options.frame);
+        vision::renderSilhouette(turned_a.positions, tri_a, view_centre, az, options.projection, options.frame);
     const vision::BitMask mb =
         vision::renderSilhouette(b.positions, tri_b, view_centre, az, options.projection, options.frame);
     const Real v = vision::iou(ma, mb);

@@ -2,6 +2,7 @@
 #include "textile_handling/sim/sim_errors.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -161,6 +162,7 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   settings.rest_min_time = end_time + 1;  // never stop early at rest
   settings.max_speed = run.max_rms_speed;
   settings.max_edge_stretch = run.max_edge_stretch;
+  if (!(run.max_wall_time >= 0)) throw SimError("stability run: max_wall_time must be >= 0");
 
   DrapeSimulation sim(*sim_model, pins, settings, x0, v0);
   std::unique_ptr<ObstaclePass> table;
@@ -180,9 +182,15 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   res.nodes = n;
   const Real chunk = std::max(run.dt, 0.01);
   RunResult rr;
+  const auto wall_start = std::chrono::steady_clock::now();
   while (sim.time() < end_time - 1e-12) {
     rr = sim.run(std::min(sim.time() + chunk, end_time));
     if (rr.diverged) break;
+    if (run.max_wall_time > 0 &&
+        std::chrono::duration<Real>(std::chrono::steady_clock::now() - wall_start).count() > run.max_wall_time) {
+      res.wall_cap_reached = true;
+      break;
+    }
     res.peak_rms_speed = std::max(res.peak_rms_speed, rmsSpeed(*model, sim.velocities()));
     res.peak_edge_stretch = std::max(res.peak_edge_stretch, model->maxEdgeStretch(sim.state()));
   }
@@ -197,6 +205,8 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   Real zmin = std::numeric_limits<Real>::infinity();
   for (Index r = 0; r < n; ++r) zmin = std::min(zmin, sim.positions()[3 * r + 2]);
   res.final_min_z = zmin;
+  res.grid = grid;
+  res.final_positions = sim.positions();
   return res;
 }
 

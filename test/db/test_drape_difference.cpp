@@ -90,3 +90,22 @@ TEST(DrapeDifference, BadInputIsNamed) {
   EXPECT_EQ(field({&g, drapeOn(g)}, {&g, nan}, kCentre), "b.positions");
   EXPECT_EQ(field({&g, drapeOn(g)}, {&g, drapeOn(g)}, Vec3(0, std::nan(""), 1)), "view_centre");
 }
+
+TEST(DrapeDifference, YawAlignmentUndoesATurnAboutTheHoldAxis) {
+  const ParticleGrid coarse = towelGrid(0.02), fine = towelGrid(0.01);
+  VecX turned = drapeOn(coarse);
+  const Real yaw = 0.4;  // rad, about +z through kCentre
+  for (Index i = 0; i < coarse.numActive(); ++i) {
+    const Real x = turned[3 * i] - kCentre.x(), y = turned[3 * i + 1] - kCentre.y();
+    turned[3 * i] = kCentre.x() + std::cos(yaw) * x - std::sin(yaw) * y;
+    turned[3 * i + 1] = kCentre.y() + std::sin(yaw) * x + std::cos(yaw) * y;
+  }
+  DrapeDifferenceOptions o;
+  const DrapeDifference raw = measureDrapeDifference({&coarse, turned}, {&fine, drapeOn(fine)}, kCentre, o);
+  EXPECT_GT(raw.max_node_distance, 0.05);
+  o.align_yaw = true;
+  const DrapeDifference aligned = measureDrapeDifference({&coarse, turned}, {&fine, drapeOn(fine)}, kCentre, o);
+  EXPECT_NEAR(aligned.yaw_deg, -0.4 * 180.0 / kPi, 0.05);
+  EXPECT_LT(aligned.max_node_distance, 2e-4);
+  EXPECT_GT(aligned.min_iou, 0.95);
+}

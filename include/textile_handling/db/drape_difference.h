@@ -26,6 +26,10 @@ struct DrapeDifferenceOptions {
   vision::CanonicalFrame frame;             ///< the database's default frame (1 x 1 m at 1/64 m per pixel)
   /// Textile-frame points [m] whose distance is reported separately (the textile's named points).
   std::vector<Vec2> named_points;
+  /// Turn drape `a` about the vertical axis through the view centre to fit `b` best (least squares over
+  /// the finer grid's nodes) before comparing. For drapes held at one point, whose turn about that point
+  /// no force fixes and which recognition finds by its views anyway.
+  bool align_yaw = false;
 };
 
 struct DrapeDifference {
@@ -34,6 +38,7 @@ struct DrapeDifference {
   Real max_named_point_distance = 0;  ///< [m] over DrapeDifferenceOptions::named_points (0 if none)
   Real mean_iou = 0;                  ///< silhouette IoU, mean over the views
   Real min_iou = 0;                   ///< worst view
+  Real yaw_deg = 0;                   ///< the turn applied to `a` (align_yaw), about +z [deg]
 };
 
 /// Compares drape `a` with drape `b` of the same textile (grids of any spacings). The drape on the
@@ -41,7 +46,8 @@ struct DrapeDifference {
 /// extrapolated at its edge); node and named-point distances are taken there (a named point at the finer
 /// grid's node nearest to it). Silhouettes: both meshes rendered with `view_centre` [m, world] as the
 /// canonical frame's hold point, IoU without shift. Shapes: a.positions 3 x a.grid->numActive(), the
-/// same for b. Throws vision::InvalidArgumentError naming the input (null or empty grid, a positions size
+/// same for b. With options.align_yaw, drape a is first turned about the vertical axis through
+/// `view_centre` by the least-squares angle (closed form) and everything is measured after the turn. Throws vision::InvalidArgumentError naming the input (null or empty grid, a positions size
 /// that does not match, a non-finite position or view centre).
 DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedDrape& b, const Vec3& view_centre,
                                        const DrapeDifferenceOptions& options = {});

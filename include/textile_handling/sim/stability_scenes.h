@@ -21,6 +21,7 @@
 
 #include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/textile_geometry.h"
 
 namespace textile_handling {
 
@@ -103,6 +104,7 @@ struct StabilityRunSpec {
   /// Divergence bounds handed to DrapeSimulation (RMS speed, edge stretch).
   Real max_rms_speed = 5.0;       ///< [m/s]
   Real max_edge_stretch = 2.0;
+  Real max_wall_time = 0;         ///< wall-clock cap of the run [s] (0 = none); a capped run is not stable
 };
 
 struct StabilityResult {
@@ -119,6 +121,9 @@ struct StabilityResult {
   Real final_min_z = 0;          ///< lowest node at the end [m] (scene b: the table is at z = 0)
   long obstacle_events = 0;
   Index nodes = 0;
+  bool wall_cap_reached = false;  ///< stopped at StabilityRunSpec::max_wall_time
+  ParticleGrid grid;              ///< the square sheet's grid (textile frame, origin at a corner)
+  VecX final_positions;           ///< node positions at the end, 3 x nodes [m]
 };
 
 /// Runs one scene with one model, step and damping setting. Throws std::invalid_argument on bad specs.
