@@ -11,8 +11,9 @@
 // --repeats rounds interleaved (round 1 runs every configuration, later rounds the ones that did not fail);
 // a configuration that hit the wall cap skips the finer spacings of its model and integrator. Errors come
 // from round 1 (the runs are deterministic); wall times are given as min/median/max over the rounds and as
-// ratios to the scene's baseline run of the same round (the first model, the first integrator, the coarsest
-// spacing), which is how timings compare across machines and hours.
+// ratios to the scene's baseline run of the same round (the first configuration, in the order models x
+// integrators x spacings coarse to fine, that did not fail in round 1), which is how timings compare across
+// machines and hours.
 // Writes DIR/runs.csv (one row per run, written as it finishes), DIR/speed_accuracy.csv (one row per
 // configuration) and DIR/speed_accuracy_<scene>.png (median wall-time ratio against the largest node
 // distance, log-log; failed configurations drawn at the top edge). Timings are never asserted.
@@ -158,6 +159,7 @@ struct ConfigResult {
   bool compared = false;
   std::vector<Real> walls, ratios;
   bool skipped = false;
+  bool baseline = false;  // the scene's timing baseline
 };
 
 Real quantile(std::vector<Real> v, double q) {
@@ -204,6 +206,7 @@ int benchMain(int argc, char** argv) {
           c.config = AccuracyConfig{m, t, d};
           rows.push_back(c);
         }
+    std::size_t baseline_row = rows.size();  // the first configuration that does not fail in round 1
     for (int round = 1; round <= o.repeats; ++round) {
       Real baseline = std::nan("");
       for (std::size_t k = 0; k < rows.size(); ++k) {
@@ -226,7 +229,8 @@ int benchMain(int argc, char** argv) {
              << c.config.spacing << ',' << round << ',' << r.status << ',' << r.wall_s << ',' << r.steps << ','
              << r.sim_time << ',' << r.nodes << ',' << csvText(r.note) << '\n'
              << std::flush;
-        if (k == 0 && !r.failed()) baseline = r.wall_s;
+        if (round == 1 && baseline_row == rows.size() && !r.failed()) baseline_row = k;
+        if (k == baseline_row && !r.failed()) baseline = r.wall_s;
         if (!r.failed()) {
           c.walls.push_back(r.wall_s);
           if (std::isfinite(baseline)) c.ratios.push_back(r.wall_s / baseline);
@@ -247,6 +251,7 @@ int benchMain(int argc, char** argv) {
         }
       }
     }
+    if (baseline_row < rows.size()) rows[baseline_row].baseline = true;
     all.insert(all.end(), rows.begin(), rows.end());
 
     // The scene's chart.
@@ -283,7 +288,7 @@ int benchMain(int argc, char** argv) {
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");
   csv << "scene,model,integrator,spacing_m,nodes,status,failed,reference,max_node_distance_m,mean_node_distance_m,"
          "max_named_point_distance_m,mean_iou,min_iou,yaw_deg,rounds,wall_s_min,wall_s_median,wall_s_max,ratio_min,"
-         "ratio_median,ratio_max,steps,sim_time_s,note\n";
+         "ratio_median,ratio_max,baseline,steps,sim_time_s,note\n";
   for (const ConfigResult& c : all) {
     csv << toString(c.scene) << ',' << c.config.model.label << ',' << toString(c.config.integrator) << ','
         << c.config.spacing << ',' << c.first.nodes << ',' << (c.skipped ? "skipped" : c.first.status) << ','
@@ -295,7 +300,7 @@ int benchMain(int argc, char** argv) {
       csv << "nan,nan,nan,nan,nan,nan,";
     csv << c.walls.size() << ',' << quantile(c.walls, 0) << ',' << quantile(c.walls, 0.5) << ','
         << quantile(c.walls, 1) << ',' << quantile(c.ratios, 0) << ',' << quantile(c.ratios, 0.5) << ','
-        << quantile(c.ratios, 1) << ',' << c.first.steps << ',' << c.first.sim_time << ','
+        << quantile(c.ratios, 1) << ',' << (c.baseline ? 1 : 0) << ',' << c.first.steps << ',' << c.first.sim_time << ','
         << csvText(c.skipped ? "a coarser spacing hit the wall cap" : c.first.note) << '\n';
   }
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");

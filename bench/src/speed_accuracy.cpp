@@ -86,9 +86,11 @@ DrapeSceneSpec drapeSpec(AccuracyScene scene, const AccuracyConfig& c) {
       break;
     case AccuracyScene::kTableDrape:
       s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);
-      s.textile = squareCloth("table_cloth", 0.50);
+      // Sizes that are whole multiples of every default spacing (3, 2, 1.5, 1, 0.75 cm), so that every grid
+      // has the same cloth and table; the region is widened by 1 um against rounding at its edge nodes.
+      s.textile = squareCloth("table_cloth", 0.48);
       s.hold.clear();
-      s.pinned_regions = {Eigen::Matrix<Real, 4, 1>(0.125, 0.125, 0.375, 0.375)};
+      s.pinned_regions = {Eigen::Matrix<Real, 4, 1>(0.12 - 1e-6, 0.12 - 1e-6, 0.36 + 1e-6, 0.36 + 1e-6)};
       break;
     case AccuracyScene::kPushedEdges:
       throw std::logic_error("drapeSpec: pushed_edges is not a drape scene");

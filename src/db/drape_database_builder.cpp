@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <exception>
 #include <mutex>
+#include <sstream>
 #include <thread>
 #include <tuple>
 #include <utility>
@@ -171,6 +172,11 @@ std::string DrapeDatabaseBuilder::parametersText(const DrapeBuildConfig& c, int 
     t += "material_variation: bending " + internal::fmt17(c.material_variation.bending) + " shear " +
          internal::fmt17(c.material_variation.shear) + " density " + internal::fmt17(c.material_variation.density) + "\n";
   if (!c.member.empty()) t += "member: " + c.member + "\n";
+  {
+    std::istringstream lines(c.automatic_choice);
+    for (std::string line; std::getline(lines, line);)
+      if (!line.empty()) t += "automatic: " + line + "\n";
+  }
   // Only for the quasi-static method (dynamic builds keep their former texts); it never applies with
   // self-collision (rest_shape_search.h), so those builds are dynamic and keep theirs too.
   if (c.rest_shape.method == RestShapeMethod::kQuasiStatic && !c.self_collision) t += c.rest_shape.text() + "\n";

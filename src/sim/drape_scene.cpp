@@ -64,6 +64,8 @@ void checkSceneMemory(const DrapeSceneSpec& spec, Index nodes) {
 bool isClothModelName(const std::string& name) { return ClothModelRegistry::instance().contains(name); }
 
 DrapeScene buildDrapeScene(const DrapeSceneSpec& spec) {
+  if (spec.automatic.requested)
+    throw SceneError("model: auto is chosen before the scene is built (chooseConfiguration(), db/automatic_configuration.h)");
   const ClothModelRegistry& models = ClothModelRegistry::instance();
   const std::any model_options = models.parseOptions(spec.model);  // throws ClothModelError naming the key
   if (spec.hold.empty() && spec.pinned_regions.empty())
@@ -427,8 +429,36 @@ void parseHoldSection(const YAML::Node& h, bool has_regions, DrapeSceneSpec& s) 
 
 // The model section: `name` plus the model's own option keys (ClothModelRegistry), validated here so
 // that a bad key fails when the scene is read.
+void parseAutomaticModel(const YAML::Node& m, DrapeSceneSpec& s) {
+  s.automatic.requested = true;
+  for (const auto& kv : m) {
+    if (!kv.first.IsScalar()) fail("'model' has a key that is not a plain string");
+    const std::string& key = kv.first.Scalar();
+    if (key == "name") continue;
+    if (key == "question") {
+      s.automatic.question = getString(kv.second, "model.question");
+    } else if (key == "spacings_m") {
+      checkList(kv.second, "model.spacings_m", kMaxSceneListLength);
+      for (const auto& v : kv.second) {
+        const Real d = getReal(v, "model.spacings_m[]");
+        if (!(d > 0)) fail("'model.spacings_m' values must be > 0");
+        s.automatic.spacings.push_back(d);
+      }
+    } else if (key == "named_point_tolerance_m") {
+      s.automatic.named_point_tolerance_m = positive(m, "named_point_tolerance_m", 0.03, "model.");
+    } else if (key == "min_mean_iou") {
+      s.automatic.min_mean_iou = getReal(kv.second, "model.min_mean_iou");
+      if (!(s.automatic.min_mean_iou >= 0 && s.automatic.min_mean_iou <= 1)) fail("'model.min_mean_iou' must be in [0, 1]");
+    } else {
+      fail("unknown key " + quoted(joined("model", key)) +
+           " for name: auto; known: question, spacings_m, named_point_tolerance_m, min_mean_iou");
+    }
+  }
+}
+
 void parseModel(const YAML::Node& m, DrapeSceneSpec& s) {
   if (!m.IsMap()) fail("'model' must be a map");
+  if (m["name"] && m["name"].IsScalar() && m["name"].Scalar() == "auto") return parseAutomaticModel(m, s);
   std::set<std::string> seen;
   for (const auto& kv : m) {
     if (!kv.first.IsScalar()) fail("'model' has a key that is not a plain string");
@@ -623,7 +653,11 @@ void parseObstacles(const YAML::Node& ob, ObstacleSpec& o) {
 void parseSceneRoot(const YAML::Node& root, const std::string& base_dir, DrapeSceneSpec& s) {
   checkKeys(root, "", {"textile", "material", "spacing_m", "hold", "pinned_regions", "model", "simulation",
                        "collision", "obstacles", "start"});
-  for (const char* key : {"textile", "material", "spacing_m", "hold"}) requireKey(root, key, "");
+  // spacing_m is the automatic choice's under model: {name: auto}.
+  const YAML::Node model = root["model"];
+  const bool automatic = model && model.IsMap() && model["name"] && model["name"].IsScalar() && model["name"].Scalar() == "auto";
+  for (const char* key : {"textile", "material", "hold"}) requireKey(root, key, "");
+  if (!automatic) requireKey(root, "spacing_m", "");
   s.textile = parseTextile(root["textile"]);
   s.material = parseMaterial(root["material"], base_dir);
   s.spacing = positive(root, "spacing_m", s.spacing, "");

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "textile_handling/sim/collision_obstacles.h"
+#include "textile_handling/sim/position_view_pass.h"
 #include "textile_handling/sim/textile_geometry.h"
 
 namespace textile_handling {
@@ -109,7 +110,11 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
       x0.segment<3>(3 * r) = Vec3(q.x(), off, sc.table_gap + q.y());  // vertical sheet above the table
     }
   }
-  const VecX v0 = VecX::Zero(3 * n);
+  // Positions into the position DOFs; a model's further DOFs (yarn sliding coordinates) start at 0.
+  const VecX positions0 = x0;
+  VecX state0 = VecX::Zero(model->numDofs());
+  model->setPositions(positions0, state0);
+  const VecX v0 = VecX::Zero(model->numDofs());
 
   PinnedNodes pins;
   std::vector<Index> anchored;
@@ -121,14 +126,14 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
     if (pushed) {
       if (j == last_col) {
         pins.nodes.push_back(r);
-        pins.anchors.push_back(x0.segment<3>(3 * r));
+        pins.anchors.push_back(positions0.segment<3>(3 * r));
       } else if (j == 0) {
         anchored.push_back(r);
-        anchors.push_back(x0.segment<3>(3 * r));
+        anchors.push_back(positions0.segment<3>(3 * r));
       }
     } else if (i == last_row) {
       pins.nodes.push_back(r);
-      pins.anchors.push_back(x0.segment<3>(3 * r));
+      pins.anchors.push_back(positions0.segment<3>(3 * r));
     }
   }
   // The holder follows a smoothstep profile tau^2 (3 - 2 tau) (starts and stops without a jump in
@@ -164,8 +169,9 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   settings.max_edge_stretch = run.max_edge_stretch;
   if (!(run.max_wall_time >= 0)) throw SimError("stability run: max_wall_time must be >= 0");
 
-  DrapeSimulation sim(*sim_model, pins, settings, x0, v0);
+  DrapeSimulation sim(*sim_model, pins, settings, state0, v0);
   std::unique_ptr<ObstaclePass> table;
+  std::unique_ptr<PositionViewPass> table_on_positions;  // the table pass on the node positions (> 3 DOFs)
   if (!pushed) {
     ObstacleOptions oo;
     oo.friction = sc.table_friction;
@@ -174,7 +180,12 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
     floor.point = Vec3::Zero();
     floor.normal = Vec3::UnitZ();
     table->addPlane(floor);
-    sim.setPostStepPass(table.get());
+    if (model->dofsPerNode() == 3) {
+      sim.setPostStepPass(table.get());
+    } else {
+      table_on_positions = std::make_unique<PositionViewPass>(*table, *model);
+      sim.setPostStepPass(table_on_positions.get());
+    }
   }
 
   StabilityResult res;

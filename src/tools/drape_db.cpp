@@ -3,6 +3,7 @@
 //
 //   drape_db build  --db FILE --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
 //                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
+//                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N] [--question Q]]
 //   drape_db list   --db FILE [--simulations] [--textile NAME] [--check]
 //   drape_db query  --db FILE (--mask PNG | --image PNG) --hold-pixel U,V --metres-per-pixel M [--top K]
 //                   [--second-mask PNG | --second-image PNG, --second-hold-pixel U,V, --second-metres-per-pixel M,
@@ -33,6 +34,7 @@
 
 #include "build_progress_printer.h"
 #include "textile_handling/bench/thesis_benchmark.h"
+#include "textile_handling/db/automatic_configuration.h"
 #include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
@@ -81,6 +83,8 @@ const char* kUsage =
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
+    "         [--auto [--auto-spacings D,D,..] [--auto-tolerance M=0.03] [--auto-min-iou X=0.85]\n"
+    "                 [--auto-samples N=3] [--question none|pull_out|sliding|tearing]]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
     "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
     "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
@@ -211,12 +215,56 @@ std::string fixed(double v, int p) {
 
 int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r);
 
+// --auto: model, spacing, integrator and policy from the resolution search on a spread sample of the build's
+// hold points (automatic_configuration.h); the choice and its evidence are printed and go into the build's
+// parameter text.
+void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildConfig& c) {
+  AutomaticChoiceOptions o;
+  o.views = c.views;
+  o.frame = c.frame;
+  if (a.has("--auto-spacings")) {
+    o.spacings.clear();
+    std::stringstream list(a.get("--auto-spacings"));
+    for (std::string item; std::getline(list, item, ',');) o.spacings.push_back(number(item, "--auto-spacings"));
+  }
+  if (a.has("--auto-tolerance")) o.named_point_tolerance_m = number(a.get("--auto-tolerance"), "--auto-tolerance");
+  if (a.has("--auto-min-iou")) o.min_mean_iou = number(a.get("--auto-min-iou"), "--auto-min-iou");
+  const Real samples = number(a.get("--auto-samples", "3"), "--auto-samples");
+  if (!(samples >= 1 && samples <= 20 && samples == std::floor(samples)))
+    throw UsageError("--auto-samples must be a whole number in [1, 20]");
+  try {
+    o.question = yarnScaleQuestionFromString(a.get("--question", "none"));
+    o.validate();
+  } catch (const InvalidInputError& e) {
+    throw UsageError(e.what());
+  }
+  const std::vector<Vec2> candidates =
+      c.hold_points.empty() ? fundamentalDomainLattice(c.textile, sym, c.lattice_spacing) : c.hold_points;
+  std::vector<DrapeSceneSpec> scenes;
+  for (const Vec2& p : spreadSample(candidates, static_cast<int>(samples)))
+    scenes.push_back(DrapeDatabaseBuilder::sceneSpec(c, p));
+  if (!a.has("--quiet")) o.on_progress = [](const std::string& line) { std::cerr << "auto: " << line << "\n"; };
+  const AutomaticChoice choice = chooseConfiguration(scenes, o);
+  std::cout << "automatic choice (" << fixed(choice.search_wall_s, 1) << " s of search):\n" << choice.text();
+  c.model = choice.model;
+  c.spacing = choice.spacing;
+  c.settings = choice.settings;
+  c.automatic_choice = choice.text();
+}
+
 int cmdBuild(const Args& a) {
   a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
-               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members"});
+               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members",
+               "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question"});
+  if (a.has("--auto"))
+    for (const char* fixed_by_auto : {"--spacing", "--model", "--integrator", "--policy"})
+      if (a.has(fixed_by_auto))
+        throw UsageError(std::string("--auto chooses the model, spacing, integrator and policy: drop ") + fixed_by_auto);
+  for (const char* auto_only : {"--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question"})
+    if (a.has(auto_only) && !a.has("--auto")) throw UsageError(std::string(auto_only) + " needs --auto");
   DrapeBuildConfig c;
   try {
     c.textile = presetTextile(a.require("--textile"));
@@ -327,6 +375,8 @@ int cmdBuild(const Args& a) {
   } catch (const InvalidInputError& e) {
     throw UsageError(std::string("--members: ") + e.what());
   }
+
+  if (a.has("--auto")) chooseAutomatically(a, sym, c);
 
   tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
   if (!a.has("--quiet")) progress.attach(c);
@@ -649,7 +699,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   try {
     if (cmd == "build")
-      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--auto", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
                                              "--self-collision"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));

@@ -2,7 +2,8 @@
 //
 //   drape_sim SCENE.yaml [--out DIR] [--resume STATE] [--until T] [--threads N] [--memory-budget-mb M]
 //
-// Outputs in DIR (default out/drape_sim): result.yaml (run summary), rest_positions.csv, rest_shape.png,
+// A scene with model: {name: auto} first runs the automatic choice (docs/automatic_configuration.md) and
+// prints it. Outputs in DIR (default out/drape_sim): result.yaml (run summary), rest_positions.csv, rest_shape.png,
 // state.txt (save file; `--resume DIR/state.txt` continues the run), trajectory.csv when the scene sets
 // simulation.trajectory_every. The scene's collision/obstacles sections turn on the post-step passes;
 // result.yaml reports their cost per step and the intersecting triangle pairs of the final shape.
@@ -18,6 +19,7 @@
 #include <limits>
 #include <string>
 
+#include "textile_handling/db/automatic_configuration.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/rest_shape_picture.h"
@@ -161,6 +163,23 @@ void writeOutputs(const std::string& out_dir, const DrapeScene& scene, const Dra
   }
 }
 
+// model: {name: auto}: the resolution search on the scene itself (automatic_configuration.h); the choice
+// and its evidence are printed and the scene runs with it.
+void chooseAutomatically(DrapeSceneSpec& spec) {
+  db::AutomaticChoiceOptions o;
+  o.question = db::yarnScaleQuestionFromString(spec.automatic.question);
+  if (!spec.automatic.spacings.empty()) o.spacings = spec.automatic.spacings;
+  o.named_point_tolerance_m = spec.automatic.named_point_tolerance_m;
+  o.min_mean_iou = spec.automatic.min_mean_iou;
+  o.on_progress = [](const std::string& line) { std::cout << "auto: " << line << "\n" << std::flush; };
+  DrapeSceneSpec sample = spec;
+  sample.automatic = AutomaticModelRequest();
+  const db::AutomaticChoice choice = db::chooseConfiguration({sample}, o);
+  std::cout << "automatic choice (" << choice.search_wall_s << " s of search):\n" << choice.text();
+  choice.applyTo(sample);
+  spec = sample;
+}
+
 int run(const Options& o) {
   std::string note;
   applyThreadLimit(o.threads, &note);
@@ -169,8 +188,12 @@ int run(const Options& o) {
   try {
     DrapeSceneSpec spec = loadDrapeSceneYaml(o.scene_path);
     spec.settings.memory_budget_bytes = o.memory_budget_bytes;
+    if (spec.automatic.requested) chooseAutomatically(spec);
     scene = buildDrapeScene(spec);
   } catch (const std::invalid_argument& e) {
+    std::cerr << "drape_sim: " << o.scene_path << ": " << e.what() << "\n";
+    return kExitBadInput;
+  } catch (const db::InvalidInputError& e) {  // the automatic choice's options (model.question, ...)
     std::cerr << "drape_sim: " << o.scene_path << ": " << e.what() << "\n";
     return kExitBadInput;
   }

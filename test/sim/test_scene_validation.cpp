@@ -395,5 +395,30 @@ TEST(SceneFuzz, DeepNestingIsAnErrorNotACrash) {
   EXPECT_FALSE(parseError(kMinimal.substr(kMinimal.find('\n') + 1) + deep).empty());
 }
 
+
+TEST(SceneAutomaticModel, ModelAutoIsReadWithItsKeysAndMakesSpacingOptional) {
+  const DrapeSceneSpec s = parseDrapeSceneYaml(
+      "textile: square\nmaterial: cotton\nhold: {points: [corner_ul]}\n"
+      "model: {name: auto, question: pull_out, spacings_m: [0.06, 0.04], named_point_tolerance_m: 0.02, "
+      "min_mean_iou: 0.9}\n");
+  EXPECT_TRUE(s.automatic.requested);
+  EXPECT_EQ(s.automatic.question, "pull_out");
+  ASSERT_EQ(s.automatic.spacings.size(), 2u);
+  EXPECT_DOUBLE_EQ(s.automatic.spacings[1], 0.04);
+  EXPECT_DOUBLE_EQ(s.automatic.named_point_tolerance_m, 0.02);
+  EXPECT_DOUBLE_EQ(s.automatic.min_mean_iou, 0.9);
+  // Not chosen yet: building it is refused, naming what to do.
+  EXPECT_TRUE(contains(rejection([&] { buildDrapeScene(s); }), "model: auto is chosen before the scene is built"));
+  // Without auto, the spacing stays required and no automatic choice is requested.
+  EXPECT_FALSE(parseDrapeSceneYaml(kMinimal).automatic.requested);
+}
+
+TEST(SceneAutomaticModel, BadAutoKeysAreNamed) {
+  const std::string head = "textile: square\nmaterial: cotton\nhold: {points: [corner_ul]}\n";
+  EXPECT_TRUE(contains(parseError(head + "model: {name: auto, jacobian: exact}\n"), "model.jacobian"));
+  EXPECT_TRUE(contains(parseError(head + "model: {name: auto, spacings_m: [0.02, -1]}\n"), "model.spacings_m"));
+  EXPECT_TRUE(contains(parseError(head + "model: {name: auto, min_mean_iou: 1.5}\n"), "model.min_mean_iou"));
+  EXPECT_TRUE(contains(parseError(head + "model: {name: auto, named_point_tolerance_m: 0}\n"), "named_point_tolerance_m"));
+}
 }  // namespace
 }  // namespace textile_handling

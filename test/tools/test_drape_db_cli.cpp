@@ -138,3 +138,39 @@ TEST_F(DrapeDbCli, ADamagedStoredViewIsSkippedAndReported) {
 }
 
 }  // namespace
+
+TEST_F(DrapeDbCli, AutoRefusesTheSettingsItChoosesAndItsOptionsNeedIt) {
+  const std::string never = dir_ + "/never_auto.sqlite";
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--spacing", "0.02"}), "--spacing");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--model", "choi_ko"}), "--model");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto-tolerance", "0.01"}), "needs --auto");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--question", "unravel"}), "unravel");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--auto-spacings", "0.02"}),
+                "spacings");
+  EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
+  const std::string path = dir_ + "/auto.sqlite";
+  const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--hold", "0.15,0.15",
+                                "--views", "4", "--threads", "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.05",
+                                "--auto-tolerance", "10", "--auto-min-iou", "0", "--auto-samples", "2", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("automatic choice"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos) << r.out;
+  db::DatabaseOpenOptions o;
+  o.read_only = true;
+  o.create = false;
+  db::HangingDrapeDatabase database(path, o);
+  const auto t = database.findTextile("square");
+  ASSERT_TRUE(t);
+  const auto sims = database.simulations(t->id);
+  ASSERT_EQ(sims.size(), 2u);
+  for (const auto& s : sims) {
+    EXPECT_EQ(s.status, db::SimulationStatus::kDone);
+    EXPECT_DOUBLE_EQ(s.spacing, 0.06);
+    EXPECT_NE(s.parameters.find("automatic: model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos)
+        << s.parameters;
+    EXPECT_NE(s.parameters.find("automatic: evidence particle_kes hold"), std::string::npos) << s.parameters;
+  }
+}

@@ -164,3 +164,24 @@ TEST(DrapeSimCli, TheDemoSceneIsAccepted) {
 }
 
 }  // namespace
+
+TEST(DrapeSimCli, ModelAutoChoosesPrintsItsEvidenceAndRuns) {
+  const Scratch s;
+  const std::string scene = s.scene(
+      "auto.yaml",
+      "textile: square\nmaterial: cotton\nhold: {points: [corner_ul]}\n"
+      "model: {name: auto, spacings_m: [0.06, 0.05], named_point_tolerance_m: 10, min_mean_iou: 0}\n");
+  const Outcome o = runDrapeSim({scene, "--out", s.dir + "/out", "--threads", "1"});
+  EXPECT_EQ(o.exit_code, 0) << o.out << o.err;
+  EXPECT_TRUE(contains(o.out, "automatic choice")) << o.out;
+  EXPECT_TRUE(contains(o.out, "model particle_kes (hanging scene), spacing 0.06 m")) << o.out;
+  EXPECT_TRUE(contains(o.out, "evidence particle_kes hold corner_ul d 0.06 vs 0.05")) << o.out;
+  EXPECT_TRUE(std::filesystem::exists(s.dir + "/out/result.yaml"));
+  // An unknown yarn-scale question is bad input, before any simulation.
+  const std::string bad = s.scene("bad_auto.yaml",
+                                  "textile: square\nmaterial: cotton\nhold: {points: [corner_ul]}\n"
+                                  "model: {name: auto, question: unravel}\n");
+  const Outcome b = runDrapeSim({bad, "--out", s.dir + "/bad"});
+  EXPECT_EQ(b.exit_code, 2) << b.err;
+  EXPECT_TRUE(contains(b.err, "unravel")) << b.err;
+}

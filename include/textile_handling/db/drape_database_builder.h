@@ -114,6 +114,9 @@ struct DrapeBuildConfig {
   /// Name of the database member this build makes (drape_build_members.h): written into the parameter
   /// text when non-empty, so every row says how it was made.
   std::string member;
+  /// The automatic choice's report (AutomaticChoice::text(), automatic_configuration.h) when model, spacing
+  /// and integrator were chosen automatically; written into the parameter text, one "automatic:" line each.
+  std::string automatic_choice;
   /// How a rest shape is found (rest_shape_search.h): kDynamic (the default) runs the simulation to
   /// rest; kQuasiStatic settles on a 2 cm grid, finishes the equilibrium there with Newton solves and
   /// settles the prolonged shape on the build's grid (falling back to kDynamic if a stage fails).

@@ -42,6 +42,17 @@ struct ObstacleSpec {
   bool empty() const { return planes.empty() && boxes.empty() && spheres.empty(); }
 };
 
+/// Scene key `model: {name: auto, ...}`: the model, spacing, integrator and time-step policy are left to the
+/// automatic choice (chooseConfiguration(), db/automatic_configuration.h, docs/automatic_configuration.md),
+/// which a tool runs before it builds the scene. buildDrapeScene() refuses a spec that still asks for it.
+struct AutomaticModelRequest {
+  bool requested = false;
+  std::string question = "none";          ///< model.question: none | pull_out | sliding | tearing
+  std::vector<Real> spacings;             ///< model.spacings_m: candidates [m] (empty = the choice's default)
+  Real named_point_tolerance_m = 0.03;    ///< model.named_point_tolerance_m
+  Real min_mean_iou = 0.85;               ///< model.min_mean_iou
+};
+
 struct DrapeSceneSpec {
   TextileOutline textile = presetTextile("towel");
   Material material = Material::cotton();
@@ -65,6 +76,7 @@ struct DrapeSceneSpec {
   std::vector<Vec3> lift_offsets;              ///< [m]
   /// Cloth model and its options (scene key model:; the names and keys of ClothModelRegistry).
   ClothModelSpec model;
+  AutomaticModelRequest automatic;  ///< model: {name: auto}; `model` then holds the default until chosen
   SimulationSettings settings;
   /// Self-collision after every step (scene key collision.self: off | v1 | v2 | v3). Off by default:
   /// a scene gets no more model than it needs; the demo scene and the database builder turn v3 on.

@@ -1,0 +1,89 @@
+// Automatic choice of cloth model, resolution, integrator and time-step policy for a scene or a database
+// build (scene `model: auto`, `drape_db build --auto`; docs/automatic_configuration.md).
+//
+//  - Model, by what the scene asks: the yarn model only for yarn-scale questions (pull-out, sliding,
+//    tearing); Choi-Ko where compression and buckling dominate (a supported scene: pinned regions or
+//    obstacles, e.g. a table drape) or where the particle model fails at the chosen settings; otherwise
+//    the particle model.
+//  - Integrator and policy: semi_implicit with error-controlled steps (the speed/accuracy benchmark's front
+//    on every scene it completes; bench/results/*-speed-accuracy).
+//  - Resolution: the coarsest candidate spacing whose recognition-relevant output agrees with the next
+//    finer candidate on every sampled hold point: named points (corners, grasp points) within a distance,
+//    silhouettes at the database's frame and views above a mean IoU (measureDrapeDifference(), turned about
+//    the hold axis for one-point holds).
+// The choice and its evidence (every comparison made) are returned, printed by the tools and stored in the
+// database build's parameter text.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "textile_handling/db/database_errors.h"
+#include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/vision/silhouette_renderer.h"
+
+namespace textile_handling {
+namespace db {
+
+/// Questions only the yarn-level model answers.
+enum class YarnScaleQuestion { kNone, kPullOut, kSliding, kTearing };
+std::string toString(YarnScaleQuestion q);
+/// Parses "none", "pull_out", "sliding", "tearing"; throws InvalidInputError naming the value otherwise.
+YarnScaleQuestion yarnScaleQuestionFromString(const std::string& s);
+
+struct AutomaticChoiceOptions {
+  /// Candidate spacings [m]; tried coarse to fine (sorted here), at least two, each finite and > 0.
+  std::vector<Real> spacings = {0.03, 0.02, 0.015, 0.01, 0.0075};
+  Real named_point_tolerance_m = 0.03;  ///< largest named-point distance to the next finer candidate [m]
+  Real min_mean_iou = 0.85;             ///< smallest mean silhouette IoU against the next finer candidate
+  YarnScaleQuestion question = YarnScaleQuestion::kNone;
+  /// Silhouettes as the database stores them.
+  vision::ViewSet views;
+  vision::CanonicalFrame frame;
+  /// Called with one line per simulation run (for the tools' terminal output).
+  std::function<void(const std::string& line)> on_progress;
+  /// Throws InvalidInputError naming the field.
+  void validate() const;
+};
+
+/// One comparison of the resolution search: a sampled hold point at `spacing` against `finer_spacing`.
+struct AutomaticChoiceEvidence {
+  std::string hold;                ///< HoldPoint::label() of the sample
+  std::string model;
+  Real spacing = 0, finer_spacing = 0;
+  std::string status;              ///< "compared", or why not ("diverged at ...", "not at rest", ...)
+  Real named_point_distance = 0;   ///< [m]
+  Real max_node_distance = 0;      ///< [m]
+  Real mean_iou = 0;
+  Real wall_s = 0;                 ///< both runs of the comparison [s] (the finer one once per spacing)
+  bool agrees = false;
+};
+
+struct AutomaticChoice {
+  ClothModelSpec model;            ///< the chosen model with the settling options of a build
+  std::string model_reason;        ///< why this model
+  Real spacing = 0;                ///< [m]
+  SimulationSettings settings;     ///< integrator, policy and steps as chosen
+  bool converged = false;          ///< false: no candidate agreed with a finer one; the finest was taken
+  std::vector<AutomaticChoiceEvidence> evidence;
+  Real search_wall_s = 0;          ///< wall time of the whole search [s]
+  /// Multi-line report: the choice, the reason, the tolerances and one line per comparison.
+  std::string text() const;
+  /// The choice applied to a scene spec (model, spacing, settings).
+  void applyTo(DrapeSceneSpec& spec) const;
+};
+
+/// Chooses for the scenes `samples` (the same textile and material, one scene per sampled hold point; their
+/// model, spacing and integrator settings are ignored, the rest of each spec is kept). Every simulation
+/// runs to rest with the chosen settings; a sample that fails or does not reach rest at a spacing counts
+/// as disagreement, and a particle model that diverges switches the search to Choi-Ko. Throws
+/// InvalidInputError for no samples or bad options; simulation failures never throw.
+AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, const AutomaticChoiceOptions& options);
+
+/// Up to `count` hold points spread over `candidates` (farthest-point sampling from the first one), for
+/// the resolution search of a database build. Shapes: textile-frame points [m].
+std::vector<Vec2> spreadSample(const std::vector<Vec2>& candidates, int count);
+
+}  // namespace db
+}  // namespace textile_handling

@@ -1,0 +1,138 @@
+// chooseConfiguration(): the model rule, the resolution search and its evidence, bad options.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+#include "textile_handling/db/automatic_configuration.h"
+
+using namespace textile_handling;
+using namespace textile_handling::db;
+
+namespace {
+
+/// The 30 x 30 cm square hung by a corner (small enough for several resolutions in a test).
+DrapeSceneSpec hangingSquare(const std::string& hold = "corner_ul") {
+  DrapeSceneSpec s = benchmarkTowelSpec(0.03, hold);
+  s.textile = presetTextile("square");
+  return s;
+}
+
+AutomaticChoiceOptions coarseCandidates() {
+  AutomaticChoiceOptions o;
+  o.spacings = {0.06, 0.04, 0.03, 0.02};
+  o.views = vision::ViewSet{8, 0.0, 45.0};
+  return o;
+}
+
+}  // namespace
+
+TEST(AutomaticConfiguration, AnyAgreementTakesTheCoarsestCandidate) {
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.named_point_tolerance_m = 10;
+  o.min_mean_iou = 0;
+  const AutomaticChoice c = chooseConfiguration({hangingSquare()}, o);
+  EXPECT_TRUE(c.converged);
+  EXPECT_EQ(c.model.name, "particle_kes");
+  EXPECT_DOUBLE_EQ(c.spacing, 0.06);
+  EXPECT_EQ(c.settings.integrator, IntegratorType::kSemiImplicitEuler);
+  EXPECT_EQ(c.settings.policy, StepPolicy::kErrorControlled);
+  ASSERT_EQ(c.evidence.size(), 1u);
+  EXPECT_EQ(c.evidence[0].status, "compared");
+  EXPECT_GT(c.evidence[0].mean_iou, 0.3);  // the same drape at two resolutions, not two unrelated masks
+  EXPECT_NE(c.text().find("evidence particle_kes hold corner_ul d 0.06 vs 0.04"), std::string::npos) << c.text();
+}
+
+TEST(AutomaticConfiguration, NoAgreementTakesTheFinestAndSaysSo) {
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.named_point_tolerance_m = 1e-9;
+  const AutomaticChoice c = chooseConfiguration({hangingSquare()}, o);
+  EXPECT_FALSE(c.converged);
+  EXPECT_DOUBLE_EQ(c.spacing, 0.02);
+  EXPECT_EQ(c.evidence.size(), 3u);  // every neighbouring pair compared once
+  EXPECT_NE(c.text().find("the finest was taken"), std::string::npos);
+}
+
+TEST(AutomaticConfiguration, TheChoiceIsTheCoarsestSpacingWhoseEvidenceAgrees) {
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.named_point_tolerance_m = 0.04;
+  o.min_mean_iou = 0.7;
+  const AutomaticChoice c = chooseConfiguration({hangingSquare("corner_ul"), hangingSquare("centre")}, o);
+  ASSERT_FALSE(c.evidence.empty());
+  for (const AutomaticChoiceEvidence& e : c.evidence) {
+    if (e.spacing > c.spacing) {
+      // A coarser candidate was rejected: its last comparison disagrees.
+      continue;
+    }
+    if (c.converged && e.spacing == c.spacing) {
+      EXPECT_TRUE(e.agrees) << c.text();
+      EXPECT_LE(e.named_point_distance, 0.04);
+      EXPECT_GE(e.mean_iou, 0.7);
+    }
+  }
+  for (Real coarser : {0.06, 0.04, 0.03}) {
+    if (coarser <= c.spacing) continue;
+    bool rejected = false;
+    for (const AutomaticChoiceEvidence& e : c.evidence)
+      if (e.spacing == coarser && !e.agrees) rejected = true;
+    EXPECT_TRUE(rejected) << "candidate " << coarser << " skipped without a disagreeing comparison\n" << c.text();
+  }
+  if (c.converged) {
+    int at_choice = 0;
+    for (const AutomaticChoiceEvidence& e : c.evidence) at_choice += e.spacing == c.spacing;
+    EXPECT_EQ(at_choice, 2);  // both sampled holds agreed
+  }
+}
+
+TEST(AutomaticConfiguration, ModelRule) {
+  AutomaticChoiceOptions loose = coarseCandidates();
+  loose.spacings = {0.06, 0.05};
+  loose.named_point_tolerance_m = 10;
+  loose.min_mean_iou = 0;
+  DrapeSceneSpec table = hangingSquare();
+  table.hold.clear();
+  table.pinned_regions = {Eigen::Matrix<Real, 4, 1>(0.1, 0.1, 0.2, 0.2)};
+  const AutomaticChoice t = chooseConfiguration({table}, loose);
+  EXPECT_EQ(t.model.name, "choi_ko");
+  EXPECT_NE(t.model_reason.find("supported"), std::string::npos);
+  loose.question = YarnScaleQuestion::kPullOut;
+  const AutomaticChoice y = chooseConfiguration({hangingSquare()}, loose);
+  EXPECT_EQ(y.model.name, "yarn_woven");
+  EXPECT_NE(y.text().find("pull_out"), std::string::npos);
+}
+
+TEST(AutomaticConfiguration, BadOptionsAreNamed) {
+  auto message = [](const AutomaticChoiceOptions& o, std::vector<DrapeSceneSpec> samples) -> std::string {
+    try {
+      chooseConfiguration(samples, o);
+    } catch (const InvalidInputError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.spacings = {0.02};
+  EXPECT_NE(message(o, {hangingSquare()}).find("spacings"), std::string::npos);
+  o = coarseCandidates();
+  o.spacings = {0.02, std::nan("")};
+  EXPECT_NE(message(o, {hangingSquare()}).find("spacings"), std::string::npos);
+  o = coarseCandidates();
+  o.named_point_tolerance_m = -1;
+  EXPECT_NE(message(o, {hangingSquare()}).find("named_point_tolerance_m"), std::string::npos);
+  o = coarseCandidates();
+  o.min_mean_iou = 2;
+  EXPECT_NE(message(o, {hangingSquare()}).find("min_mean_iou"), std::string::npos);
+  EXPECT_NE(message(coarseCandidates(), {}).find("no sample"), std::string::npos);
+  EXPECT_THROW(yarnScaleQuestionFromString("unravel"), InvalidInputError);
+}
+
+TEST(AutomaticConfiguration, SpreadSampleTakesFarApartPoints) {
+  const std::vector<Vec2> pts = {Vec2(0, 0), Vec2(0.01, 0), Vec2(0.3, 0.3), Vec2(0.3, 0), Vec2(0.15, 0.15)};
+  const std::vector<Vec2> s = spreadSample(pts, 3);
+  ASSERT_EQ(s.size(), 3u);
+  EXPECT_EQ(s[0], Vec2(0, 0));
+  EXPECT_EQ(s[1], Vec2(0.3, 0.3));
+  EXPECT_EQ(s[2], Vec2(0.3, 0));
+  EXPECT_EQ(spreadSample(pts, 10).size(), 5u);
+  EXPECT_TRUE(spreadSample({}, 3).empty());
+}
