@@ -4,7 +4,7 @@
 //   speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] [--integrators I,..] [--spacings D,..]
 //                        [--reference-spacing D] [--reference-model M] [--model-option M:KEY=VALUE]...
 //                        [--material M=PATH]... [--repeats N] [--max-wall S] [--reference-max-wall S]
-//                        [--threads N]
+//                        [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]
 //
 // For each scene: one reference run per model (its finest, most accurate settings at --reference-spacing;
 // with --reference-model, only that model's, and every run is compared with it), then every configuration,
@@ -17,6 +17,11 @@
 // Writes DIR/runs.csv (one row per run, written as it finishes), DIR/speed_accuracy.csv (one row per
 // configuration) and DIR/speed_accuracy_<scene>.png (median wall-time ratio against the largest node
 // distance, log-log; failed configurations drawn at the top edge). Timings are never asserted.
+// --auto: before the configurations of a drape scene, the automatic choice (chooseConfiguration(), candidates
+// = --spacings, the scene's semi_implicit settings) runs on the scene's own hold; its row is marked auto_choice
+// and drawn as its own series, its search is written to DIR/automatic_choice.txt, and front_margin says how
+// far it lies from the front (0 = on it). on_front marks the front of each scene (median ratio, largest node
+// distance).
 //
 // Exit status: 0 done, 2 bad input or usage, 4 outputs cannot be written, 5 another unexpected error.
 #include <algorithm>
@@ -27,12 +32,14 @@
 #include <iostream>
 #include <map>
 #include <new>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "textile_handling/bench/bench_chart.h"
 #include "textile_handling/bench/speed_accuracy.h"
+#include "textile_handling/db/automatic_configuration.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/thread_limit.h"
 
@@ -74,6 +81,8 @@ struct Options {
   std::string reference_model;  // empty: each model against its own reference
   int repeats = 3;
   AccuracyRunLimits limits;
+  bool automatic = false;  // --auto: run the automatic choice per drape scene and mark it
+  db::AutomaticChoiceOptions auto_options;
 };
 
 AccuracyModel* findModel(Options& o, const std::string& name) {
@@ -118,6 +127,9 @@ Options parseOptions(int argc, char** argv) {
     } else if (a == "--repeats") o.repeats = static_cast<int>(parsePositive(value(), a));
     else if (a == "--max-wall") o.limits.max_wall_s = parsePositive(value(), a);
     else if (a == "--reference-max-wall") o.limits.reference_max_wall_s = parsePositive(value(), a);
+    else if (a == "--auto") o.automatic = true;
+    else if (a == "--auto-tolerance") o.auto_options.named_point_tolerance_m = parsePositive(value(), a);
+    else if (a == "--auto-min-iou") o.auto_options.min_mean_iou = parsePositive(value(), a);
     else if (a == "--threads") {
       int threads = 0;
       std::string error, note;
@@ -128,7 +140,7 @@ Options parseOptions(int argc, char** argv) {
                                   "'; usage: speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] "
                                   "[--integrators I,..] [--spacings D,..] [--reference-spacing D] [--reference-model M] "
                                   "[--model-option M:KEY=VALUE]... [--material M=PATH]... [--repeats N] [--max-wall S] "
-                                  "[--reference-max-wall S] [--threads N]");
+                                  "[--reference-max-wall S] [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]");
     }
   }
   for (const std::string& n : model_names) {
@@ -147,6 +159,8 @@ Options parseOptions(int argc, char** argv) {
   for (const auto& mat : materials) findModel(o, mat.first)->material = loadMaterialYaml(mat.second);
   if (!o.reference_model.empty()) findModel(o, o.reference_model);
   std::sort(o.spacings.begin(), o.spacings.end(), std::greater<Real>());
+  o.auto_options.spacings = o.spacings;
+  if (o.automatic) o.auto_options.validate();
   return o;
 }
 
@@ -160,6 +174,9 @@ struct ConfigResult {
   std::vector<Real> walls, ratios;
   bool skipped = false;
   bool baseline = false;  // the scene's timing baseline
+  bool auto_choice = false;
+  bool on_front = false;
+  Real front_margin = std::nan("");
 };
 
 Real quantile(std::vector<Real> v, double q) {
@@ -182,7 +199,23 @@ int benchMain(int argc, char** argv) {
   if (!runs) throw OutputError("cannot write " + o.out + "/runs.csv");
   runs << "scene,model,integrator,spacing_m,round,status,wall_s,steps,sim_time_s,nodes,note\n";
   std::vector<ConfigResult> all;
+  std::ofstream auto_report;
+  if (o.automatic) {
+    auto_report.open(o.out + "/automatic_choice.txt");
+    if (!auto_report) throw OutputError("cannot write " + o.out + "/automatic_choice.txt");
+  }
   for (AccuracyScene scene : o.scenes) {
+    std::optional<db::AutomaticChoice> choice;
+    if (o.automatic && scene != AccuracyScene::kPushedEdges) {
+      const DrapeSceneSpec sample = accuracyDrapeSpec(
+          scene, AccuracyConfig{o.models.front(), IntegratorType::kSemiImplicitEuler, o.spacings.front()});
+      db::AutomaticChoiceOptions ao = o.auto_options;
+      ao.on_progress = [&](const std::string& line) { std::cout << toString(scene) << " auto: " << line << "\n" << std::flush; };
+      choice = db::chooseConfiguration({sample}, ao);
+      auto_report << "scene " << toString(scene) << " (" << choice->search_wall_s << " s of search)\n"
+                  << choice->text() << "\n"
+                  << std::flush;
+    }
     // References.
     std::map<std::string, AccuracyRun> refs;
     for (const AccuracyModel& m : o.models) {
@@ -252,6 +285,27 @@ int benchMain(int argc, char** argv) {
       }
     }
     if (baseline_row < rows.size()) rows[baseline_row].baseline = true;
+    {
+      std::vector<Real> x, y;
+      for (const ConfigResult& c : rows) {
+        const bool usable = c.compared && !c.ratios.empty();
+        x.push_back(usable ? quantile(c.ratios, 0.5) : std::nan(""));
+        y.push_back(usable ? c.diff.max_node_distance : std::nan(""));
+      }
+      const std::vector<bool> front = speedAccuracyFront(x, y);
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        rows[k].on_front = front[k];
+        if (choice && rows[k].config.model.spec.name == choice->model.name &&
+            rows[k].config.integrator == choice->settings.integrator &&
+            std::abs(rows[k].config.spacing - choice->spacing) < 1e-12) {
+          rows[k].auto_choice = true;
+          if (std::isfinite(x[k]) && std::isfinite(y[k])) rows[k].front_margin = frontMargin(x, y, k);
+          std::cout << toString(scene) << ": automatic choice " << choice->model.name << " d = " << choice->spacing
+                    << ": " << (rows[k].first.failed() ? "failed" : "completed") << ", front margin "
+                    << rows[k].front_margin << "\n";
+        }
+      }
+    }
     all.insert(all.end(), rows.begin(), rows.end());
 
     // The scene's chart.
@@ -268,7 +322,7 @@ int benchMain(int argc, char** argv) {
       p.x = std::isfinite(x) ? x : quantile(std::vector<Real>{c.first.wall_s}, 0.5);
       if (c.compared && c.diff.max_node_distance > 0) {
         p.y = c.diff.max_node_distance;
-        p.series = c.config.model.label + " " + toString(c.config.integrator);
+        p.series = c.auto_choice ? "automatic choice" : c.config.model.label + " " + toString(c.config.integrator);
         p.label = label.str();
       } else {
         p.y = std::max(worst, 1e-3) * 2;  // failed: drawn above every finished run
@@ -288,7 +342,7 @@ int benchMain(int argc, char** argv) {
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");
   csv << "scene,model,integrator,spacing_m,nodes,status,failed,reference,max_node_distance_m,mean_node_distance_m,"
          "max_named_point_distance_m,mean_iou,min_iou,yaw_deg,rounds,wall_s_min,wall_s_median,wall_s_max,ratio_min,"
-         "ratio_median,ratio_max,baseline,steps,sim_time_s,note\n";
+         "ratio_median,ratio_max,baseline,on_front,auto_choice,front_margin,steps,sim_time_s,note\n";
   for (const ConfigResult& c : all) {
     csv << toString(c.scene) << ',' << c.config.model.label << ',' << toString(c.config.integrator) << ','
         << c.config.spacing << ',' << c.first.nodes << ',' << (c.skipped ? "skipped" : c.first.status) << ','
@@ -300,7 +354,8 @@ int benchMain(int argc, char** argv) {
       csv << "nan,nan,nan,nan,nan,nan,";
     csv << c.walls.size() << ',' << quantile(c.walls, 0) << ',' << quantile(c.walls, 0.5) << ','
         << quantile(c.walls, 1) << ',' << quantile(c.ratios, 0) << ',' << quantile(c.ratios, 0.5) << ','
-        << quantile(c.ratios, 1) << ',' << (c.baseline ? 1 : 0) << ',' << c.first.steps << ',' << c.first.sim_time << ','
+        << quantile(c.ratios, 1) << ',' << (c.baseline ? 1 : 0) << ',' << (c.on_front ? 1 : 0) << ','
+        << (c.auto_choice ? 1 : 0) << ',' << c.front_margin << ',' << c.first.steps << ',' << c.first.sim_time << ','
         << csvText(c.skipped ? "a coarser spacing hit the wall cap" : c.first.note) << '\n';
   }
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");

@@ -1,6 +1,8 @@
 #include "textile_handling/bench/speed_accuracy.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <stdexcept>
 
@@ -162,6 +164,35 @@ AccuracyRun runPushedEdges(const AccuracyConfig& c, const AccuracyRunLimits& lim
 }
 
 }  // namespace
+
+DrapeSceneSpec accuracyDrapeSpec(AccuracyScene scene, const AccuracyConfig& config) {
+  if (scene == AccuracyScene::kPushedEdges) throw std::invalid_argument("pushed_edges is a compression scene, not a drape scene");
+  DrapeSceneSpec spec = drapeSpec(scene, config);
+  applyIntegrator(spec.settings, config.integrator, false);
+  return spec;
+}
+
+std::vector<bool> speedAccuracyFront(const std::vector<Real>& x, const std::vector<Real>& y) {
+  std::vector<bool> front(x.size(), false);
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (!std::isfinite(x[i]) || !std::isfinite(y[i])) continue;
+    bool dominated = false;
+    for (std::size_t j = 0; j < x.size() && !dominated; ++j)
+      dominated = j != i && std::isfinite(x[j]) && std::isfinite(y[j]) && x[j] <= x[i] && y[j] <= y[i] &&
+                  (x[j] < x[i] || y[j] < y[i]);
+    front[i] = !dominated;
+  }
+  return front;
+}
+
+Real frontMargin(const std::vector<Real>& x, const std::vector<Real>& y, std::size_t row) {
+  Real margin = 0;
+  for (std::size_t j = 0; j < x.size(); ++j) {
+    if (j == row || !std::isfinite(x[j]) || !std::isfinite(y[j]) || !(x[j] > 0) || !(y[j] > 0)) continue;
+    margin = std::max(margin, std::min(x[row] / x[j], y[row] / y[j]) - 1);
+  }
+  return margin;
+}
 
 std::string toString(AccuracyScene s) {
   for (const auto& n : sceneNames())

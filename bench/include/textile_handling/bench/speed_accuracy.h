@@ -10,6 +10,7 @@
 
 #include "textile_handling/db/drape_difference.h"
 #include "textile_handling/sim/cloth_model_registry.h"
+#include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/integrators.h"
 #include "textile_handling/sim/material.h"
 #include "textile_handling/sim/textile_geometry.h"
@@ -73,6 +74,18 @@ struct AccuracyRun {
   bool held_at_one_point = false;   ///< compared after the best turn about the hold axis (align_yaw)
   db::DrapeDifferenceOptions difference_options() const;
 };
+
+/// The drape scene of a configuration, with the integrator's settings above (not for pushed_edges, which
+/// is a compression scene: throws std::invalid_argument).
+DrapeSceneSpec accuracyDrapeSpec(AccuracyScene scene, const AccuracyConfig& config);
+
+/// Which rows of one scene lie on the speed/accuracy front: `x` cost (> 0), `y` error (>= 0), NaN for
+/// failed rows. Row i is on the front when no row is at most as costly and at most as wrong, and better in
+/// one. Shapes: x, y of equal length; the result has the same length.
+std::vector<bool> speedAccuracyFront(const std::vector<Real>& x, const std::vector<Real>& y);
+/// How far row `row` lies from the front: the largest factor f - 1 such that some row is better by at least
+/// f in both cost and error (0 on the front; 0.1 = a row exists that is 10 % cheaper and 10 % more accurate).
+Real frontMargin(const std::vector<Real>& x, const std::vector<Real>& y, std::size_t row);
 
 /// Runs one configuration (or, `reference` = true, the scene's reference settings for config.model at
 /// config.spacing; config.integrator is then ignored). Never throws for a failed simulation: the status
