@@ -42,6 +42,7 @@
 #include "textile_handling/db/automatic_configuration.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/sim/thread_limit.h"
+#include "tool_main.h"
 
 using namespace textile_handling;
 
@@ -49,7 +50,6 @@ namespace {
 
 constexpr int kExitBadInput = 2;
 constexpr int kExitOutput = 4;
-constexpr int kExitInternal = 5;
 
 std::vector<std::string> splitList(const std::string& s) {
   std::vector<std::string> out;
@@ -192,152 +192,145 @@ std::string csvText(std::string s) {
   return "\"" + s + "\"";
 }
 
-int benchMain(int argc, char** argv) {
-  const Options o = parseOptions(argc, argv);
-  std::filesystem::create_directories(o.out);
-  std::ofstream runs(o.out + "/runs.csv");
-  if (!runs) throw OutputError("cannot write " + o.out + "/runs.csv");
-  runs << "scene,model,integrator,spacing_m,round,status,wall_s,steps,sim_time_s,nodes,note\n";
-  std::vector<ConfigResult> all;
-  std::ofstream auto_report;
-  if (o.automatic) {
-    auto_report.open(o.out + "/automatic_choice.txt");
-    if (!auto_report) throw OutputError("cannot write " + o.out + "/automatic_choice.txt");
-  }
-  for (AccuracyScene scene : o.scenes) {
-    std::optional<db::AutomaticChoice> choice;
-    if (o.automatic && scene != AccuracyScene::kPushedEdges) {
-      const DrapeSceneSpec sample = accuracyDrapeSpec(
-          scene, AccuracyConfig{o.models.front(), IntegratorType::kSemiImplicitEuler, o.spacings.front()});
-      db::AutomaticChoiceOptions ao = o.auto_options;
-      ao.on_progress = [&](const std::string& line) { std::cout << toString(scene) << " auto: " << line << "\n" << std::flush; };
-      choice = db::chooseConfiguration({sample}, ao);
-      auto_report << "scene " << toString(scene) << " (" << choice->search_wall_s << " s of search)\n"
-                  << choice->text() << "\n"
-                  << std::flush;
-    }
-    // References.
-    std::map<std::string, AccuracyRun> refs;
-    for (const AccuracyModel& m : o.models) {
-      if (!o.reference_model.empty() && m.label != o.reference_model) continue;
-      AccuracyConfig rc{m, IntegratorType::kSemiImplicitEuler, o.reference_spacing};
-      std::cout << toString(scene) << ": reference " << m.label << " at d = " << o.reference_spacing << " m ... "
+// One scene: the automatic choice (--auto), the references, the configurations in interleaved rounds, the
+// front. Every run is appended to `runs` as it finishes.
+std::vector<ConfigResult> runScene(AccuracyScene scene, const Options& o, std::ostream& runs, std::ostream& auto_report) {
+  std::optional<db::AutomaticChoice> choice;
+  if (o.automatic && scene != AccuracyScene::kPushedEdges) {
+    const DrapeSceneSpec sample = accuracyDrapeSpec(
+        scene, AccuracyConfig{o.models.front(), IntegratorType::kSemiImplicitEuler, o.spacings.front()});
+    db::AutomaticChoiceOptions ao = o.auto_options;
+    ao.on_progress = [&](const std::string& line) { std::cout << toString(scene) << " auto: " << line << "\n" << std::flush; };
+    choice = db::chooseConfiguration({sample}, ao);
+    auto_report << "scene " << toString(scene) << " (" << choice->search_wall_s << " s of search)\n"
+                << choice->text() << "\n"
                 << std::flush;
-      AccuracyRun r = runAccuracyScene(scene, rc, o.limits, true);
-      std::cout << r.status << " in " << r.wall_s << " s" << (r.note.empty() ? "" : " (" + r.note + ")") << "\n";
-      runs << toString(scene) << ',' << m.label << ",reference," << o.reference_spacing << ",0," << r.status << ','
-           << r.wall_s << ',' << r.steps << ',' << r.sim_time << ',' << r.nodes << ',' << csvText(r.note) << '\n'
-           << std::flush;
-      refs[m.label] = std::move(r);
-    }
-    std::vector<ConfigResult> rows;
-    for (const AccuracyModel& m : o.models)
-      for (IntegratorType t : o.integrators)
-        for (Real d : o.spacings) {
-          ConfigResult c;
-          c.scene = scene;
-          c.config = AccuracyConfig{m, t, d};
-          rows.push_back(c);
-        }
-    std::size_t baseline_row = rows.size();  // the first configuration that does not fail in round 1
-    for (int round = 1; round <= o.repeats; ++round) {
-      Real baseline = std::nan("");
-      for (std::size_t k = 0; k < rows.size(); ++k) {
-        ConfigResult& c = rows[k];
-        if (c.skipped || (round > 1 && c.first.failed())) continue;
-        if (round == 1) {
-          // A coarser spacing of the same model and integrator hit the wall cap: finer ones would too.
-          for (std::size_t j = 0; j < k; ++j)
-            if (rows[j].config.model.label == c.config.model.label && rows[j].config.integrator == c.config.integrator &&
-                (rows[j].skipped || rows[j].first.status == "wall_cap"))
-              c.skipped = true;
-          if (c.skipped) continue;
-        }
-        AccuracyRun r = runAccuracyScene(scene, c.config, o.limits);
-        std::cout << toString(scene) << " round " << round << ": " << c.config.model.label << " "
-                  << toString(c.config.integrator) << " d = " << c.config.spacing << ": " << r.status << " in "
-                  << r.wall_s << " s\n"
-                  << std::flush;
-        runs << toString(scene) << ',' << c.config.model.label << ',' << toString(c.config.integrator) << ','
-             << c.config.spacing << ',' << round << ',' << r.status << ',' << r.wall_s << ',' << r.steps << ','
-             << r.sim_time << ',' << r.nodes << ',' << csvText(r.note) << '\n'
-             << std::flush;
-        if (round == 1 && baseline_row == rows.size() && !r.failed()) baseline_row = k;
-        if (k == baseline_row && !r.failed()) baseline = r.wall_s;
-        if (!r.failed()) {
-          c.walls.push_back(r.wall_s);
-          if (std::isfinite(baseline)) c.ratios.push_back(r.wall_s / baseline);
-        }
-        if (round == 1) {
-          const std::string ref_label = o.reference_model.empty() ? c.config.model.label : o.reference_model;
-          const AccuracyRun& ref = refs.at(ref_label);
-          std::ostringstream rl;
-          rl << ref_label << '@' << o.reference_spacing;
-          c.reference = rl.str();
-          if (!r.failed() && !ref.failed()) {
-            c.diff = db::measureDrapeDifference({&r.grid, r.positions}, {&ref.grid, ref.positions}, ref.view_centre,
-                                                ref.difference_options());
-            c.compared = true;
-          }
-          r.positions.resize(0);  // keep only what the rows need
-          c.first = std::move(r);
-        }
-      }
-    }
-    if (baseline_row < rows.size()) rows[baseline_row].baseline = true;
-    {
-      std::vector<Real> x, y;
-      for (const ConfigResult& c : rows) {
-        const bool usable = c.compared && !c.ratios.empty();
-        x.push_back(usable ? quantile(c.ratios, 0.5) : std::nan(""));
-        y.push_back(usable ? c.diff.max_node_distance : std::nan(""));
-      }
-      const std::vector<bool> front = speedAccuracyFront(x, y);
-      for (std::size_t k = 0; k < rows.size(); ++k) {
-        rows[k].on_front = front[k];
-        if (choice && rows[k].config.model.spec.name == choice->model.name &&
-            rows[k].config.integrator == choice->settings.integrator &&
-            std::abs(rows[k].config.spacing - choice->spacing) < 1e-12) {
-          rows[k].auto_choice = true;
-          if (std::isfinite(x[k]) && std::isfinite(y[k])) rows[k].front_margin = frontMargin(x, y, k);
-          std::cout << toString(scene) << ": automatic choice " << choice->model.name << " d = " << choice->spacing
-                    << ": " << (rows[k].first.failed() ? "failed" : "completed") << ", front margin "
-                    << rows[k].front_margin << "\n";
-        }
-      }
-    }
-    all.insert(all.end(), rows.begin(), rows.end());
-
-    // The scene's chart.
-    std::vector<ChartPoint> pts;
-    Real worst = 0;
-    for (const ConfigResult& c : rows)
-      if (c.compared) worst = std::max(worst, c.diff.max_node_distance);
-    for (const ConfigResult& c : rows) {
-      if (c.skipped) continue;
-      const Real x = quantile(c.ratios, 0.5);
-      std::ostringstream label;
-      label << c.config.spacing * 100;
-      ChartPoint p;
-      p.x = std::isfinite(x) ? x : quantile(std::vector<Real>{c.first.wall_s}, 0.5);
-      if (c.compared && c.diff.max_node_distance > 0) {
-        p.y = c.diff.max_node_distance;
-        p.series = c.auto_choice ? "automatic choice" : c.config.model.label + " " + toString(c.config.integrator);
-        p.label = label.str();
-      } else {
-        p.y = std::max(worst, 1e-3) * 2;  // failed: drawn above every finished run
-        p.series = "failed";
-        p.label = c.config.model.label.substr(0, 2) + " " + toString(c.config.integrator).substr(0, 2) + " " + label.str();
-      }
-      if (p.x > 0 && p.y > 0) pts.push_back(p);
-    }
-    std::string error;
-    if (!writeLogLogChart(o.out + "/speed_accuracy_" + toString(scene) + ".png", pts,
-                          "wall time / baseline run (median of rounds)", "largest node distance to reference [m]",
-                          toString(scene) + ": labels = spacing [cm]", &error))
-      std::cerr << "speed_accuracy_bench: chart of " << toString(scene) << ": " << error << "\n";
   }
+  // References.
+  std::map<std::string, AccuracyRun> refs;
+  for (const AccuracyModel& m : o.models) {
+    if (!o.reference_model.empty() && m.label != o.reference_model) continue;
+    AccuracyConfig rc{m, IntegratorType::kSemiImplicitEuler, o.reference_spacing};
+    std::cout << toString(scene) << ": reference " << m.label << " at d = " << o.reference_spacing << " m ... "
+              << std::flush;
+    AccuracyRun r = runAccuracyScene(scene, rc, o.limits, true);
+    std::cout << r.status << " in " << r.wall_s << " s" << (r.note.empty() ? "" : " (" + r.note + ")") << "\n";
+    runs << toString(scene) << ',' << m.label << ",reference," << o.reference_spacing << ",0," << r.status << ','
+         << r.wall_s << ',' << r.steps << ',' << r.sim_time << ',' << r.nodes << ',' << csvText(r.note) << '\n'
+         << std::flush;
+    refs[m.label] = std::move(r);
+  }
+  std::vector<ConfigResult> rows;
+  for (const AccuracyModel& m : o.models)
+    for (IntegratorType t : o.integrators)
+      for (Real d : o.spacings) {
+        ConfigResult c;
+        c.scene = scene;
+        c.config = AccuracyConfig{m, t, d};
+        rows.push_back(c);
+      }
+  std::size_t baseline_row = rows.size();  // the first configuration that does not fail in round 1
+  for (int round = 1; round <= o.repeats; ++round) {
+    Real baseline = std::nan("");
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      ConfigResult& c = rows[k];
+      if (c.skipped || (round > 1 && c.first.failed())) continue;
+      if (round == 1) {
+        // A coarser spacing of the same model and integrator hit the wall cap: finer ones would too.
+        for (std::size_t j = 0; j < k; ++j)
+          if (rows[j].config.model.label == c.config.model.label && rows[j].config.integrator == c.config.integrator &&
+              (rows[j].skipped || rows[j].first.status == "wall_cap"))
+            c.skipped = true;
+        if (c.skipped) continue;
+      }
+      AccuracyRun r = runAccuracyScene(scene, c.config, o.limits);
+      std::cout << toString(scene) << " round " << round << ": " << c.config.model.label << " "
+                << toString(c.config.integrator) << " d = " << c.config.spacing << ": " << r.status << " in "
+                << r.wall_s << " s\n"
+                << std::flush;
+      runs << toString(scene) << ',' << c.config.model.label << ',' << toString(c.config.integrator) << ','
+           << c.config.spacing << ',' << round << ',' << r.status << ',' << r.wall_s << ',' << r.steps << ','
+           << r.sim_time << ',' << r.nodes << ',' << csvText(r.note) << '\n'
+           << std::flush;
+      if (round == 1 && baseline_row == rows.size() && !r.failed()) baseline_row = k;
+      if (k == baseline_row && !r.failed()) baseline = r.wall_s;
+      if (!r.failed()) {
+        c.walls.push_back(r.wall_s);
+        if (std::isfinite(baseline)) c.ratios.push_back(r.wall_s / baseline);
+      }
+      if (round == 1) {
+        const std::string ref_label = o.reference_model.empty() ? c.config.model.label : o.reference_model;
+        const AccuracyRun& ref = refs.at(ref_label);
+        std::ostringstream rl;
+        rl << ref_label << '@' << o.reference_spacing;
+        c.reference = rl.str();
+        if (!r.failed() && !ref.failed()) {
+          c.diff = db::measureDrapeDifference({&r.grid, r.positions}, {&ref.grid, ref.positions}, ref.view_centre,
+                                              ref.difference_options());
+          c.compared = true;
+        }
+        r.positions.resize(0);  // keep only what the rows need
+        c.first = std::move(r);
+      }
+    }
+  }
+  if (baseline_row < rows.size()) rows[baseline_row].baseline = true;
+  {
+    std::vector<Real> x, y;
+    for (const ConfigResult& c : rows) {
+      const bool usable = c.compared && !c.ratios.empty();
+      x.push_back(usable ? quantile(c.ratios, 0.5) : std::nan(""));
+      y.push_back(usable ? c.diff.max_node_distance : std::nan(""));
+    }
+    const std::vector<bool> front = speedAccuracyFront(x, y);
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      rows[k].on_front = front[k];
+      if (choice && rows[k].config.model.spec.name == choice->model.name &&
+          rows[k].config.integrator == choice->settings.integrator &&
+          std::abs(rows[k].config.spacing - choice->spacing) < 1e-12) {
+        rows[k].auto_choice = true;
+        if (std::isfinite(x[k]) && std::isfinite(y[k])) rows[k].front_margin = frontMargin(x, y, k);
+        std::cout << toString(scene) << ": automatic choice " << choice->model.name << " d = " << choice->spacing
+                  << ": " << (rows[k].first.failed() ? "failed" : "completed") << ", front margin "
+                  << rows[k].front_margin << "\n";
+      }
+    }
+  }
+  return rows;
+}
 
+// The scene's chart: median wall-time ratio against the largest node distance; failed runs above the rest.
+void writeSceneChart(const Options& o, AccuracyScene scene, const std::vector<ConfigResult>& rows) {
+  std::vector<ChartPoint> pts;
+  Real worst = 0;
+  for (const ConfigResult& c : rows)
+    if (c.compared) worst = std::max(worst, c.diff.max_node_distance);
+  for (const ConfigResult& c : rows) {
+    if (c.skipped) continue;
+    const Real x = quantile(c.ratios, 0.5);
+    std::ostringstream label;
+    label << c.config.spacing * 100;
+    ChartPoint p;
+    p.x = std::isfinite(x) ? x : quantile(std::vector<Real>{c.first.wall_s}, 0.5);
+    if (c.compared && c.diff.max_node_distance > 0) {
+      p.y = c.diff.max_node_distance;
+      p.series = c.auto_choice ? "automatic choice" : c.config.model.label + " " + toString(c.config.integrator);
+      p.label = label.str();
+    } else {
+      p.y = std::max(worst, 1e-3) * 2;  // failed: drawn above every finished run
+      p.series = "failed";
+      p.label = c.config.model.label.substr(0, 2) + " " + toString(c.config.integrator).substr(0, 2) + " " + label.str();
+    }
+    if (p.x > 0 && p.y > 0) pts.push_back(p);
+  }
+  std::string error;
+  if (!writeLogLogChart(o.out + "/speed_accuracy_" + toString(scene) + ".png", pts,
+                        "wall time / baseline run (median of rounds)", "largest node distance to reference [m]",
+                        toString(scene) + ": labels = spacing [cm]", &error))
+    std::cerr << "speed_accuracy_bench: chart of " << toString(scene) << ": " << error << "\n";
+}
+
+void writeSummaryCsv(const Options& o, const std::vector<ConfigResult>& all) {
   std::ofstream csv(o.out + "/speed_accuracy.csv");
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");
   csv << "scene,model,integrator,spacing_m,nodes,status,failed,reference,max_node_distance_m,mean_node_distance_m,"
@@ -360,24 +353,43 @@ int benchMain(int argc, char** argv) {
   }
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");
   std::cout << "wrote " << o.out << "/speed_accuracy.csv\n";
+}
+
+int benchMain(int argc, char** argv) {
+  const Options o = parseOptions(argc, argv);
+  std::error_code ec;
+  std::filesystem::create_directories(o.out, ec);
+  if (ec) throw OutputError("cannot create " + o.out + ": " + ec.message());
+  std::ofstream runs(o.out + "/runs.csv");
+  if (!runs) throw OutputError("cannot write " + o.out + "/runs.csv");
+  runs << "scene,model,integrator,spacing_m,round,status,wall_s,steps,sim_time_s,nodes,note\n";
+  std::vector<ConfigResult> all;
+  std::ofstream auto_report;
+  if (o.automatic) {
+    auto_report.open(o.out + "/automatic_choice.txt");
+    if (!auto_report) throw OutputError("cannot write " + o.out + "/automatic_choice.txt");
+  }
+  for (AccuracyScene scene : o.scenes) {
+    const std::vector<ConfigResult> rows = runScene(scene, o, runs, auto_report);
+    writeSceneChart(o, scene, rows);
+    all.insert(all.end(), rows.begin(), rows.end());
+  }
+  writeSummaryCsv(o, all);
   return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  try {
-    return benchMain(argc, argv);
-  } catch (const OutputError& e) {
-    std::cerr << "speed_accuracy_bench: cannot write outputs: " << e.what() << "\n";
-    return kExitOutput;
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "speed_accuracy_bench: " << e.what() << "\n";
-    return kExitBadInput;
-  } catch (const std::bad_alloc&) {
-    std::cerr << "speed_accuracy_bench: out of memory\n";
-  } catch (const std::exception& e) {
-    std::cerr << "speed_accuracy_bench: unexpected error: " << e.what() << "\n";
-  }
-  return kExitInternal;
+  return runGuarded("speed_accuracy_bench", "use coarser --spacings", [&] {
+    try {
+      return benchMain(argc, argv);
+    } catch (const OutputError& e) {
+      std::cerr << "speed_accuracy_bench: cannot write outputs: " << e.what() << "\n";
+      return kExitOutput;
+    } catch (const std::invalid_argument& e) {
+      std::cerr << "speed_accuracy_bench: " << e.what() << "\n";
+      return kExitBadInput;
+    }
+  });
 }
