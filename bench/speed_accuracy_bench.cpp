@@ -266,7 +266,7 @@ std::vector<ConfigResult> runScene(AccuracyScene scene, const Options& o, std::o
         c.reference = rl.str();
         if (!r.failed() && !ref.failed()) {
           c.diff = db::measureDrapeDifference({&r.grid, r.positions}, {&ref.grid, ref.positions}, ref.view_centre,
-                                              ref.difference_options());
+                                              ref.differenceOptions());
           c.compared = true;
         }
         r.positions.resize(0);  // keep only what the rows need

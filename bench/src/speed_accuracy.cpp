@@ -215,7 +215,7 @@ std::vector<AccuracyScene> allAccuracyScenes() {
   return v;
 }
 
-db::DrapeDifferenceOptions AccuracyRun::difference_options() const {
+db::DrapeDifferenceOptions AccuracyRun::differenceOptions() const {
   db::DrapeDifferenceOptions o;
   o.named_points = named_points;
   o.align_yaw = held_at_one_point;

@@ -26,6 +26,16 @@ void checkDrape(const SimulatedDrape& d, const std::string& name) {
     throw vision::InvalidArgumentError(kFunction, name + ".positions", name + ".positions holds a non-finite value");
 }
 
+// Turns node positions (3 per node) by `yaw` [rad] about the vertical axis through `centre`.
+void turnAboutVertical(const Vec3& centre, Real yaw, VecX& x) {
+  const Real c = std::cos(yaw), s = std::sin(yaw);
+  for (Eigen::Index i = 0; i < x.size() / 3; ++i) {
+    const Real dx = x[3 * i] - centre.x(), dy = x[3 * i + 1] - centre.y();
+    x[3 * i] = centre.x() + c * dx - s * dy;
+    x[3 * i + 1] = centre.y() + s * dx + c * dy;
+  }
+}
+
 }  // namespace
 
 DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedDrape& b, const Vec3& view_centre,
@@ -35,16 +45,14 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
   if (!view_centre.allFinite())
     throw vision::InvalidArgumentError(kFunction, "view_centre", "view_centre is not finite");
 
-  // Node distances on the finer grid (fewer nodes = coarser; equal counts: a is "fine").
+  // Both drapes on the finer grid (fewer nodes = coarser; equal counts: a is "fine"), interpolated once.
   const bool a_fine = a.grid->numActive() >= b.grid->numActive();
-  SimulatedDrape turned_a{a.grid, a.positions};
+  const ParticleGrid& fine_grid = a_fine ? *a.grid : *b.grid;
+  VecX pa = a_fine ? a.positions : prolongPositions(*a.grid, a.positions, fine_grid);
+  const VecX pb = a_fine ? prolongPositions(*b.grid, b.positions, fine_grid) : b.positions;
+  VecX a_for_silhouettes = a.positions;
   DrapeDifference out;
   if (options.align_yaw) {
-    const SimulatedDrape& fine0 = a_fine ? a : b;
-    const SimulatedDrape& coarse0 = a_fine ? b : a;
-    const VecX other = prolongPositions(*coarse0.grid, coarse0.positions, *fine0.grid);
-    const VecX& pa = a_fine ? a.positions : other;
-    const VecX& pb = a_fine ? other : b.positions;
     // 2-D Procrustes about the axis: the angle maximising sum (R p_a) . p_b over horizontal offsets.
     Real sin_sum = 0, cos_sum = 0;
     for (Eigen::Index i = 0; i < pa.size() / 3; ++i) {
@@ -54,21 +62,15 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
       sin_sum += ax * by - ay * bx;
     }
     const Real yaw = std::atan2(sin_sum, cos_sum);
-    const Real c = std::cos(yaw), s = std::sin(yaw);
-    for (Eigen::Index i = 0; i < a.positions.size() / 3; ++i) {
-      const Real x = a.positions[3 * i] - view_centre.x(), y = a.positions[3 * i + 1] - view_centre.y();
-      turned_a.positions[3 * i] = view_centre.x() + c * x - s * y;
-      turned_a.positions[3 * i + 1] = view_centre.y() + s * x + c * y;
-    }
+    // Interpolation weights sum to 1, so turning the interpolated drape equals interpolating the turned one.
+    turnAboutVertical(view_centre, yaw, pa);
+    turnAboutVertical(view_centre, yaw, a_for_silhouettes);
     out.yaw_deg = yaw * 180.0 / kPi;
   }
-  const SimulatedDrape& fine = a_fine ? turned_a : b;
-  const SimulatedDrape& coarse = a_fine ? b : turned_a;
-  const VecX on_fine = prolongPositions(*coarse.grid, coarse.positions, *fine.grid);
-  const Index n = fine.grid->numActive();
+  const Index n = fine_grid.numActive();
   Real sum = 0;
   for (Index i = 0; i < n; ++i) {
-    const Real e = (on_fine.segment<3>(3 * i) - fine.positions.segment<3>(3 * i)).norm();
+    const Real e = (pa.segment<3>(3 * i) - pb.segment<3>(3 * i)).norm();
     sum += e;
     out.max_node_distance = std::max(out.max_node_distance, e);
   }
@@ -76,9 +78,9 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
   for (const Vec2& p : options.named_points) {
     if (!p.allFinite())
       throw vision::InvalidArgumentError(kFunction, "options.named_points", "a named point is not finite");
-    const Index i = fine.grid->nearestActive(p);
+    const Index i = fine_grid.nearestActive(p);
     out.max_named_point_distance =
-        std::max(out.max_named_point_distance, (on_fine.segment<3>(3 * i) - fine.positions.segment<3>(3 * i)).norm());
+        std::max(out.max_named_point_distance, (pa.segment<3>(3 * i) - pb.segment<3>(3 * i)).norm());
   }
 
   // Silhouettes of both meshes, each on its own triangulation.
@@ -89,7 +91,7 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
   Real iou_sum = 0;
   for (double az : angles) {
     const vision::BitMask ma =
-        vision::renderSilhouette(turned_a.positions, tri_a, view_centre, az, options.projection, options.frame);
+        vision::renderSilhouette(a_for_silhouettes, tri_a, view_centre, az, options.projection, options.frame);
     const vision::BitMask mb =
         vision::renderSilhouette(b.positions, tri_b, view_centre, az, options.projection, options.frame);
     const Real v = vision::iou(ma, mb);

@@ -98,20 +98,19 @@ StabilityResult runCompressionScene(const CompressionSceneSpec& sc, const Stabil
   std::unique_ptr<ClothModel> model = ClothModelRegistry::instance().create(model_spec, topo, run.material);
 
   // Initial pose with the out-of-plane perturbation: a smooth first mode plus pseudo-random noise.
-  VecX x0(3 * n);
+  VecX positions0(3 * n);
   for (Index r = 0; r < n; ++r) {
     const Vec2 q = grid.activePosition(r) - grid.origin();
     const Real mode = pushed ? std::sin(kPi * q.x() / sc.side) : std::sin(kPi * q.y() / sc.side);
     const Real off =
         sc.spacing * (sc.perturbation * mode + sc.noise * hashNoise(static_cast<std::uint64_t>(r)));
     if (pushed) {
-      x0.segment<3>(3 * r) = Vec3(q.x(), q.y(), off);  // horizontal sheet at z = 0
+      positions0.segment<3>(3 * r) = Vec3(q.x(), q.y(), off);  // horizontal sheet at z = 0
     } else {
-      x0.segment<3>(3 * r) = Vec3(q.x(), off, sc.table_gap + q.y());  // vertical sheet above the table
+      positions0.segment<3>(3 * r) = Vec3(q.x(), off, sc.table_gap + q.y());  // vertical sheet above the table
     }
   }
   // Positions into the position DOFs; a model's further DOFs (yarn sliding coordinates) start at 0.
-  const VecX positions0 = x0;
   VecX state0 = VecX::Zero(model->numDofs());
   model->setPositions(positions0, state0);
   const VecX v0 = VecX::Zero(model->numDofs());

@@ -34,14 +34,14 @@ TEST(SpeedAccuracyScene, ACoarseRunIsComparedWithAFinerReference) {
   EXPECT_TRUE(ref.held_at_one_point);
   const db::DrapeDifference d =
       db::measureDrapeDifference({&coarse.grid, coarse.positions}, {&ref.grid, ref.positions}, ref.view_centre,
-                                 ref.difference_options());
+                                 ref.differenceOptions());
   // The same square at two resolutions: the free corners differ (a 6 cm grid hangs flatter; measured 14 cm),
   // well below the 42 cm drop, and the silhouettes overlap clearly; the reference against itself is exact.
   EXPECT_LT(d.max_named_point_distance, 0.2);
   EXPECT_GT(d.max_named_point_distance, 0.0);
   EXPECT_GT(d.mean_iou, 0.5);
   const db::DrapeDifference self = db::measureDrapeDifference({&ref.grid, ref.positions}, {&ref.grid, ref.positions},
-                                                              ref.view_centre, ref.difference_options());
+                                                              ref.view_centre, ref.differenceOptions());
   EXPECT_LT(self.max_node_distance, 1e-12);
   EXPECT_DOUBLE_EQ(self.mean_iou, 1.0);
   // A bad configuration comes back as an error row, not an exception.

@@ -72,7 +72,7 @@ struct AccuracyRun {
   Vec3 view_centre = Vec3::Zero();  ///< world point at the silhouettes' hold position
   std::vector<Vec2> named_points;   ///< textile frame [m]
   bool held_at_one_point = false;   ///< compared after the best turn about the hold axis (align_yaw)
-  db::DrapeDifferenceOptions difference_options() const;
+  db::DrapeDifferenceOptions differenceOptions() const;
 };
 
 /// The drape scene of a configuration, with the integrator's settings above (not for pushed_edges, which
