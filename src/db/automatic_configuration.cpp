@@ -93,7 +93,7 @@ std::string AutomaticChoice::text() const {
   std::ostringstream t;
   t << "model " << model.name << " (" << model_reason << "), spacing " << number(spacing) << " m, integrator "
     << toString(settings.integrator) << ", policy " << toString(settings.policy)
-    << (converged ? "" : " (no candidate agreed with a finer one: the finest was taken)") << "\n";
+    << (converged ? "" : " (no candidate agreed with every finer one: the finest was taken)") << "\n";
   for (const AutomaticChoiceEvidence& e : evidence) {
     t << "evidence " << e.model << " hold " << e.hold << " d " << number(e.spacing) << " vs " << number(e.finer_spacing)
       << ": ";
@@ -180,36 +180,41 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
       return runs.emplace(std::make_pair(i, k), std::move(r)).first->second;
     };
     bool particle_failed = false;
+    // Sample i at spacing d[k] against d[j] (j finer), recorded as evidence.
+    auto compare = [&](std::size_t i, std::size_t k, std::size_t j) -> bool {
+      const SearchRun& a = run(i, k);
+      const SearchRun& b = run(i, j);
+      AutomaticChoiceEvidence e;
+      e.hold = samples[i].hold.empty() ? "regions" : samples[i].hold.front().label();
+      e.model = model_name;
+      e.spacing = d[k];
+      e.finer_spacing = d[j];
+      e.wall_s = a.wall_s + b.wall_s;
+      if (model_name == "particle_kes" && (a.diverged || b.diverged)) particle_failed = true;
+      if (!a.usable || !b.usable) {
+        e.status = "d " + number(a.usable ? d[j] : d[k]) + ": " + (a.usable ? b.status : a.status);
+      } else {
+        diff.named_points.clear();
+        for (const NamedPoint& p : samples[i].textile.named_points) diff.named_points.push_back(p.position);
+        diff.align_yaw = samples[i].hold.size() == 1 && !supportedScene(samples[i]);
+        const DrapeDifference m = measureDrapeDifference({&a.grid, a.positions}, {&b.grid, b.positions},
+                                                         samples[i].hold_position, diff);
+        e.status = "compared";
+        e.named_point_distance = m.max_named_point_distance;
+        e.max_node_distance = m.max_node_distance;
+        e.mean_iou = m.mean_iou;
+        e.agrees = m.max_named_point_distance <= options.named_point_tolerance_m && m.mean_iou >= options.min_mean_iou;
+      }
+      choice.evidence.push_back(e);
+      return e.agrees;
+    };
+    // A spacing is taken only when it agrees with every finer candidate: agreeing with the next one alone
+    // can be two coarse drapes that fold alike and far from the fine one (the table drape at 2 and 1.5 cm).
     bool chosen = false;
     for (std::size_t k = 0; k + 1 < d.size() && !chosen && !particle_failed; ++k) {
       bool all_agree = true;
-      for (std::size_t i = 0; i < samples.size() && all_agree; ++i) {
-        const SearchRun& a = run(i, k);
-        const SearchRun& b = run(i, k + 1);
-        AutomaticChoiceEvidence e;
-        e.hold = samples[i].hold.empty() ? "regions" : samples[i].hold.front().label();
-        e.model = model_name;
-        e.spacing = d[k];
-        e.finer_spacing = d[k + 1];
-        e.wall_s = a.wall_s + b.wall_s;
-        if (model_name == "particle_kes" && (a.diverged || b.diverged)) particle_failed = true;
-        if (!a.usable || !b.usable) {
-          e.status = "d " + number(a.usable ? d[k + 1] : d[k]) + ": " + (a.usable ? b.status : a.status);
-        } else {
-          diff.named_points.clear();
-          for (const NamedPoint& p : samples[i].textile.named_points) diff.named_points.push_back(p.position);
-          diff.align_yaw = samples[i].hold.size() == 1 && !supportedScene(samples[i]);
-          const DrapeDifference m = measureDrapeDifference({&a.grid, a.positions}, {&b.grid, b.positions},
-                                                           samples[i].hold_position, diff);
-          e.status = "compared";
-          e.named_point_distance = m.max_named_point_distance;
-          e.max_node_distance = m.max_node_distance;
-          e.mean_iou = m.mean_iou;
-          e.agrees = m.max_named_point_distance <= options.named_point_tolerance_m && m.mean_iou >= options.min_mean_iou;
-        }
-        all_agree = e.agrees;
-        choice.evidence.push_back(e);
-      }
+      for (std::size_t j = k + 1; j < d.size() && all_agree && !particle_failed; ++j)
+        for (std::size_t i = 0; i < samples.size() && all_agree && !particle_failed; ++i) all_agree = compare(i, k, j);
       if (all_agree && !particle_failed) {
         choice.spacing = d[k];
         choice.converged = true;

@@ -1,6 +1,7 @@
 // chooseConfiguration(): the model rule, the resolution search and its evidence, bad options.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -37,10 +38,41 @@ TEST(AutomaticConfiguration, AnyAgreementTakesTheCoarsestCandidate) {
   EXPECT_DOUBLE_EQ(c.spacing, 0.06);
   EXPECT_EQ(c.settings.integrator, IntegratorType::kSemiImplicitEuler);
   EXPECT_EQ(c.settings.policy, StepPolicy::kErrorControlled);
-  ASSERT_EQ(c.evidence.size(), 1u);
-  EXPECT_EQ(c.evidence[0].status, "compared");
-  EXPECT_GT(c.evidence[0].mean_iou, 0.3);  // the same drape at two resolutions, not two unrelated masks
+  // The coarsest against every finer candidate, in order.
+  ASSERT_EQ(c.evidence.size(), 3u);
+  const Real finer[] = {0.04, 0.03, 0.02};
+  for (std::size_t j = 0; j < 3; ++j) {
+    EXPECT_DOUBLE_EQ(c.evidence[j].spacing, 0.06);
+    EXPECT_DOUBLE_EQ(c.evidence[j].finer_spacing, finer[j]);
+    EXPECT_EQ(c.evidence[j].status, "compared");
+    EXPECT_TRUE(c.evidence[j].agrees);
+    EXPECT_GT(c.evidence[j].mean_iou, 0.3);  // the same drape at two resolutions, not two unrelated masks
+  }
   EXPECT_NE(c.text().find("evidence particle_kes hold corner_ul d 0.06 vs 0.04"), std::string::npos) << c.text();
+  EXPECT_NE(c.text().find("evidence particle_kes hold corner_ul d 0.06 vs 0.02"), std::string::npos) << c.text();
+}
+
+TEST(AutomaticConfiguration, AgreeingWithTheNextFinerAloneIsNotEnough) {
+  // Distances of the coarsest drape to each finer one, then a tolerance that the next finer meets and a
+  // finer one does not: the coarsest must be rejected although its first comparison agrees.
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.named_point_tolerance_m = 10;
+  o.min_mean_iou = 0;
+  const AutomaticChoice all = chooseConfiguration({hangingSquare()}, o);
+  ASSERT_EQ(all.evidence.size(), 3u);
+  const Real next = all.evidence[0].named_point_distance;
+  const Real farther = std::max(all.evidence[1].named_point_distance, all.evidence[2].named_point_distance);
+  ASSERT_LT(next, farther) << all.text();  // the 6 cm square is closer to 4 cm than to 2 cm
+  o.named_point_tolerance_m = 0.5 * (next + farther);
+  const AutomaticChoice c = chooseConfiguration({hangingSquare()}, o);
+  EXPECT_LT(c.spacing, 0.06) << c.text();
+  ASSERT_GE(c.evidence.size(), 2u);
+  EXPECT_DOUBLE_EQ(c.evidence[0].finer_spacing, 0.04);
+  EXPECT_TRUE(c.evidence[0].agrees) << c.text();
+  bool rejected = false;
+  for (const AutomaticChoiceEvidence& e : c.evidence)
+    if (e.spacing == 0.06 && !e.agrees) rejected = true;
+  EXPECT_TRUE(rejected) << c.text();
 }
 
 TEST(AutomaticConfiguration, NoAgreementTakesTheFinestAndSaysSo) {
@@ -49,7 +81,7 @@ TEST(AutomaticConfiguration, NoAgreementTakesTheFinestAndSaysSo) {
   const AutomaticChoice c = chooseConfiguration({hangingSquare()}, o);
   EXPECT_FALSE(c.converged);
   EXPECT_DOUBLE_EQ(c.spacing, 0.02);
-  EXPECT_EQ(c.evidence.size(), 3u);  // every neighbouring pair compared once
+  EXPECT_EQ(c.evidence.size(), 3u);  // each candidate rejected at its first comparison
   EXPECT_NE(c.text().find("the finest was taken"), std::string::npos);
 }
 
@@ -78,9 +110,11 @@ TEST(AutomaticConfiguration, TheChoiceIsTheCoarsestSpacingWhoseEvidenceAgrees) {
     EXPECT_TRUE(rejected) << "candidate " << coarser << " skipped without a disagreeing comparison\n" << c.text();
   }
   if (c.converged) {
-    int at_choice = 0;
+    // Both sampled holds agreed with every finer candidate.
+    int at_choice = 0, finer = 0;
     for (const AutomaticChoiceEvidence& e : c.evidence) at_choice += e.spacing == c.spacing;
-    EXPECT_EQ(at_choice, 2);  // both sampled holds agreed
+    for (Real f : {0.04, 0.03, 0.02}) finer += f < c.spacing;
+    EXPECT_EQ(at_choice, 2 * finer);
   }
 }
 

@@ -7,8 +7,8 @@
 //    the particle model.
 //  - Integrator and policy: semi_implicit with error-controlled steps (the speed/accuracy benchmark's front
 //    on every scene it completes; bench/results/*-speed-accuracy).
-//  - Resolution: the coarsest candidate spacing whose recognition-relevant output agrees with the next
-//    finer candidate on every sampled hold point: named points (corners, grasp points) within a distance,
+//  - Resolution: the coarsest candidate spacing whose recognition-relevant output agrees with every finer
+//    candidate on every sampled hold point: named points (corners, grasp points) within a distance,
 //    silhouettes at the database's frame and views above a mean IoU (measureDrapeDifference(), turned about
 //    the hold axis for one-point holds).
 // The choice and its evidence (every comparison made) are returned, printed by the tools and stored in the
@@ -35,8 +35,8 @@ YarnScaleQuestion yarnScaleQuestionFromString(const std::string& s);
 struct AutomaticChoiceOptions {
   /// Candidate spacings [m]; tried coarse to fine (sorted here), at least two, each finite and > 0.
   std::vector<Real> spacings = {0.03, 0.02, 0.015, 0.01, 0.0075};
-  Real named_point_tolerance_m = 0.03;  ///< largest named-point distance to the next finer candidate [m]
-  Real min_mean_iou = 0.85;             ///< smallest mean silhouette IoU against the next finer candidate
+  Real named_point_tolerance_m = 0.03;  ///< largest named-point distance to any finer candidate [m]
+  Real min_mean_iou = 0.85;             ///< smallest mean silhouette IoU against any finer candidate
   YarnScaleQuestion question = YarnScaleQuestion::kNone;
   /// Silhouettes as the database stores them.
   vision::ViewSet views;
@@ -56,7 +56,7 @@ struct AutomaticChoiceEvidence {
   Real named_point_distance = 0;   ///< [m]
   Real max_node_distance = 0;      ///< [m]
   Real mean_iou = 0;
-  Real wall_s = 0;                 ///< both runs of the comparison [s] (the finer one once per spacing)
+  Real wall_s = 0;                 ///< both runs of the comparison [s] (each run is simulated once and reused)
   bool agrees = false;
 };
 
@@ -65,7 +65,7 @@ struct AutomaticChoice {
   std::string model_reason;        ///< why this model
   Real spacing = 0;                ///< [m]
   SimulationSettings settings;     ///< integrator, policy and steps as chosen
-  bool converged = false;          ///< false: no candidate agreed with a finer one; the finest was taken
+  bool converged = false;          ///< false: no candidate agreed with every finer one; the finest was taken
   std::vector<AutomaticChoiceEvidence> evidence;
   Real search_wall_s = 0;          ///< wall time of the whole search [s]
   /// Multi-line report: the choice, the reason, the tolerances and one line per comparison.
