@@ -16,25 +16,56 @@ namespace {
 
 const cv::Scalar kInk(40, 40, 40);
 
-std::map<std::string, cv::Scalar> seriesColours(const std::vector<ChartPoint>& pts) {
+/// How one series is drawn: a colour and, once the eight colours are used up, another marker shape.
+struct SeriesStyle {
+  cv::Scalar colour;
+  int shape = 0;  ///< 0 disc, 1 square, 2 triangle, 3 diamond
+};
+
+std::map<std::string, SeriesStyle> seriesStyles(const std::vector<ChartPoint>& pts) {
   static const cv::Scalar palette[] = {{200, 80, 30}, {30, 150, 30}, {30, 30, 200}, {160, 40, 160},
                                        {0, 140, 200}, {120, 120, 0}, {90, 90, 90},  {200, 0, 100}};
-  std::map<std::string, cv::Scalar> colour;
+  std::map<std::string, SeriesStyle> style;
+  // Styles in order of first appearance, so a chart's first series always gets the first colour.
   for (const auto& p : pts)
-    if (!colour.count(p.series)) colour[p.series] = palette[colour.size() % 8];
-  return colour;
+    if (!style.count(p.series)) {
+      const std::size_t k = style.size();
+      style[p.series] = SeriesStyle{palette[k % 8], static_cast<int>((k / 8) % 4)};
+    }
+  return style;
+}
+
+/// A filled marker of half-size `r` pixels centred at `c`.
+void drawMarker(cv::Mat& img, cv::Point c, int r, const SeriesStyle& s) {
+  switch (s.shape) {
+    case 1:
+      cv::rectangle(img, {c.x - r, c.y - r}, {c.x + r, c.y + r}, s.colour, -1, cv::LINE_AA);
+      return;
+    case 2: {
+      const std::vector<cv::Point> tri = {{c.x, c.y - r - 1}, {c.x - r - 1, c.y + r}, {c.x + r + 1, c.y + r}};
+      cv::fillConvexPoly(img, tri, s.colour, cv::LINE_AA);
+      return;
+    }
+    case 3: {
+      const std::vector<cv::Point> dia = {{c.x, c.y - r - 2}, {c.x - r - 2, c.y}, {c.x, c.y + r + 2}, {c.x + r + 2, c.y}};
+      cv::fillConvexPoly(img, dia, s.colour, cv::LINE_AA);
+      return;
+    }
+    default:
+      cv::circle(img, c, r, s.colour, -1, cv::LINE_AA);
+  }
 }
 
 // Frame, title, axis labels and the legend right of the plot area.
 void drawFrame(cv::Mat& img, int left, int top, int pw, int ph, const std::string& x_label, const std::string& y_label,
-               const std::string& title, const std::map<std::string, cv::Scalar>& colour) {
+               const std::string& title, const std::map<std::string, SeriesStyle>& style) {
   cv::rectangle(img, {left, top}, {left + pw, top + ph}, kInk);
   cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.65, kInk, 1, cv::LINE_AA);
   cv::putText(img, x_label, {left + pw / 2 - 80, img.rows - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, kInk, 1, cv::LINE_AA);
   cv::putText(img, y_label, {10, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
   int ly = top + 10;
-  for (const auto& [name, c] : colour) {
-    cv::circle(img, {left + pw + 25, ly}, 6, c, -1, cv::LINE_AA);
+  for (const auto& [name, s] : style) {
+    drawMarker(img, {left + pw + 25, ly}, 6, s);
     cv::putText(img, name, {left + pw + 38, ly + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
     ly += 24;
   }
@@ -74,12 +105,12 @@ bool writeLogLogChart(const std::string& path, const std::vector<ChartPoint>& po
     cv::putText(img, "1e" + std::to_string(static_cast<int>(e)), {left - 50, py(e) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45,
                 ink, 1, cv::LINE_AA);
   }
-  const std::map<std::string, cv::Scalar> colour = seriesColours(pts);
-  drawFrame(img, left, top, pw, ph, x_label, y_label, title, colour);
+  const std::map<std::string, SeriesStyle> style = seriesStyles(pts);
+  drawFrame(img, left, top, pw, ph, x_label, y_label, title, style);
   for (const auto& p : pts) {
     const cv::Point c(px(std::log10(p.x)), py(std::log10(p.y)));
-    cv::circle(img, c, 6, colour.at(p.series), -1, cv::LINE_AA);
-    cv::putText(img, p.label, {c.x + 8, c.y - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.33, colour.at(p.series), 1, cv::LINE_AA);
+    drawMarker(img, c, 6, style.at(p.series));
+    cv::putText(img, p.label, {c.x + 8, c.y - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.33, style.at(p.series).colour, 1, cv::LINE_AA);
   }
   return writePngFile(path, img, "chart", error);
 }
@@ -116,13 +147,13 @@ bool writeLineChart(const std::string& path, const std::vector<ChartPoint>& poin
     cv::putText(img, text, {left - 90, py(y) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45, kInk, 1, cv::LINE_AA);
   }
   if (y0 < 0 && y1 > 0) cv::line(img, {left, py(0)}, {left + pw, py(0)}, cv::Scalar(150, 150, 150));
-  const std::map<std::string, cv::Scalar> colour = seriesColours(pts);
-  drawFrame(img, left, top, pw, ph, x_label, y_label, title, colour);
+  const std::map<std::string, SeriesStyle> style = seriesStyles(pts);
+  drawFrame(img, left, top, pw, ph, x_label, y_label, title, style);
   for (std::size_t k = 0; k < pts.size(); ++k) {
     const cv::Point c(px(pts[k].x), py(pts[k].y));
-    cv::circle(img, c, 3, colour.at(pts[k].series), -1, cv::LINE_AA);
+    drawMarker(img, c, 3, style.at(pts[k].series));
     if (k > 0 && pts[k - 1].series == pts[k].series)
-      cv::line(img, {px(pts[k - 1].x), py(pts[k - 1].y)}, c, colour.at(pts[k].series), 1, cv::LINE_AA);
+      cv::line(img, {px(pts[k - 1].x), py(pts[k - 1].y)}, c, style.at(pts[k].series).colour, 1, cv::LINE_AA);
   }
   return writePngFile(path, img, "chart", error);
 }

@@ -137,7 +137,7 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
   const Clock::time_point t0 = Clock::now();
   std::vector<Real> d = options.spacings;
   std::sort(d.begin(), d.end(), std::greater<Real>());
-  d.erase(std::unique(d.begin(), d.end()), d.end());
+  d.erase(std::unique(d.begin(), d.end(), [](Real x, Real y) { return std::abs(x - y) <= 1e-9 * x; }), d.end());
   if (d.size() < 2) throw InvalidInputError("automatic choice: spacings needs at least two different candidates");
 
   AutomaticChoice choice;

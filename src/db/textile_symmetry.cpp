@@ -280,6 +280,33 @@ std::vector<Index> mirrorPermutation(const ParticleGrid& grid, const TextileSymm
   return perm;
 }
 
+Real mirrorSymmetricSpacing(const TextileOutline& textile, const TextileSymmetry& symmetry, Real spacing) {
+  if (!(std::isfinite(spacing) && spacing > 0))
+    throw std::invalid_argument("mirrorSymmetricSpacing: spacing must be finite and > 0");
+  if (!symmetry.any()) return spacing;
+  auto symmetric = [&](Real d) {
+    std::string error;
+    const ParticleGrid grid = ParticleGrid::rasterize(textile, d, &error);
+    if (grid.empty()) return false;
+    for (MirrorKind m : symmetry.mirrors())
+      if (mirrorPermutation(grid, symmetry, m).empty()) return false;
+    return true;
+  };
+  if (symmetric(spacing)) return spacing;
+  const std::vector<Vec2> full = fullOutline(textile);
+  Vec2 lo = full.front(), hi = lo;
+  for (const Vec2& p : full) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  // A symmetric grid has a whole number of steps across the box in each mirrored direction.
+  std::vector<Real> tries;
+  for (Real extent : {hi.x() - lo.x(), hi.y() - lo.y()})
+    for (long n = static_cast<long>(std::ceil(extent / spacing - 1e-9)); extent / n >= 0.5 * spacing; ++n)
+      if (extent / n < spacing) tries.push_back(extent / n);
+  std::sort(tries.begin(), tries.end(), std::greater<Real>());
+  for (Real d : tries)
+    if (symmetric(d)) return d;
+  return spacing;
+}
+
 VecX mirrorPositions(const VecX& positions, const std::vector<Index>& perm, MirrorKind m, const Vec3& hold_world) {
   if (positions.size() != 3 * static_cast<Eigen::Index>(perm.size()))
     throw std::invalid_argument("mirrorPositions: permutation and positions differ in size");

@@ -238,6 +238,21 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   } catch (const InvalidInputError& e) {
     throw UsageError(e.what());
   }
+  // The build mirrors rest shapes only on a mirror-symmetric grid (a quarter of a towel's hold points are
+  // simulated), so each candidate becomes the nearest finer spacing with such a grid.
+  if (sym.any()) {
+    std::vector<Real> snapped;
+    for (Real d : o.spacings) snapped.push_back(mirrorSymmetricSpacing(c.textile, sym, d));
+    std::sort(snapped.begin(), snapped.end(), std::greater<Real>());
+    snapped.erase(std::unique(snapped.begin(), snapped.end(), [](Real x, Real y) { return std::abs(x - y) <= 1e-9 * x; }),
+                  snapped.end());
+    if (snapped.size() < 2)
+      throw UsageError("--auto-spacings: the candidates give fewer than two different mirror-symmetric grids");
+    std::ostringstream line;
+    for (Real d : snapped) line << (line.tellp() > 0 ? ", " : "") << d;
+    std::cout << "automatic choice: candidate spacings on mirror-symmetric grids: " << line.str() << " m\n";
+    o.spacings = snapped;
+  }
   const std::vector<Vec2> candidates =
       c.hold_points.empty() ? fundamentalDomainLattice(c.textile, sym, c.lattice_spacing) : c.hold_points;
   std::vector<DrapeSceneSpec> scenes;

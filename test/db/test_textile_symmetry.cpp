@@ -1,6 +1,7 @@
 // Mirror symmetry of textiles, fundamental-domain hold points, the build plan and particle mirroring.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <set>
 
 #include "textile_handling/db/textile_symmetry.h"
@@ -146,4 +147,31 @@ TEST(TextileSymmetry, LatticeNeighbours) {
   EXPECT_FALSE(latticeNeighbours(2, 3, 3, 4, false));
   EXPECT_TRUE(latticeNeighbours(2, 3, 3, 4, true));
   EXPECT_FALSE(latticeNeighbours(2, 3, 4, 3, true));
+}
+
+TEST(TextileSymmetry, MirrorSymmetricSpacingIsTheNearestFinerSymmetricGrid) {
+  const TextileOutline towel = presetTextile("towel");  // 64 x 46 cm: symmetric grids at 2 cm / n
+  const TextileSymmetry s = detectSymmetry(towel);
+  auto symmetricGrid = [&](Real d) {
+    std::string error;
+    const ParticleGrid g = ParticleGrid::rasterize(towel, d, &error);
+    for (MirrorKind m : s.mirrors())
+      if (mirrorPermutation(g, s, m).empty()) return false;
+    return !g.empty();
+  };
+  ASSERT_FALSE(symmetricGrid(0.0075));
+  EXPECT_NEAR(mirrorSymmetricSpacing(towel, s, 0.0075), 0.02 / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(mirrorSymmetricSpacing(towel, s, 0.01), 0.01);  // already symmetric: kept
+  EXPECT_NEAR(mirrorSymmetricSpacing(towel, s, 0.03), 0.02, 1e-12);
+  EXPECT_NEAR(mirrorSymmetricSpacing(towel, s, 0.015), 0.01, 1e-12);
+  for (Real d : {0.0075, 0.015, 0.03, 0.011}) {
+    const Real snapped = mirrorSymmetricSpacing(towel, s, d);
+    EXPECT_LE(snapped, d);
+    EXPECT_GE(snapped, 0.5 * d);
+    EXPECT_TRUE(symmetricGrid(snapped)) << d << " -> " << snapped;
+  }
+  // No mirror: nothing to gain, the spacing is kept.
+  EXPECT_DOUBLE_EQ(mirrorSymmetricSpacing(towel, TextileSymmetry{}, 0.0075), 0.0075);
+  EXPECT_THROW(mirrorSymmetricSpacing(towel, s, std::nan("")), std::invalid_argument);
+  EXPECT_THROW(mirrorSymmetricSpacing(towel, s, -0.01), std::invalid_argument);
 }

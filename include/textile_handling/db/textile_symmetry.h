@@ -87,6 +87,14 @@ std::vector<PlannedHoldPoint> planHoldPoints(const std::vector<Vec2>& canonical,
 /// or an empty vector if the grid is not symmetric under m (e.g. a towel side that is not a multiple of d).
 std::vector<Index> mirrorPermutation(const ParticleGrid& grid, const TextileSymmetry& symmetry, MirrorKind m);
 
+/// The largest spacing d' in [spacing/2, spacing] at which the particle grid of `textile` is symmetric under
+/// every mirror of `symmetry` (mirrorPermutation() succeeds), so that a database build at d' simulates only
+/// the fundamental domain's hold points and mirrors the rest. Tried: `spacing`, then the bounding box's width
+/// and height divided by whole numbers, largest first. Returns `spacing` when the symmetry has no mirror or
+/// no such spacing exists in the range. Example: the 64 x 46 cm towel at 0.75 cm gives 2/3 cm (96 x 69
+/// steps). Throws std::invalid_argument for a spacing that is not finite and > 0.
+Real mirrorSymmetricSpacing(const TextileOutline& textile, const TextileSymmetry& symmetry, Real spacing);
+
 /// The mirrored rest shape: particle perm[k] of the result is particle k of `positions` reflected in
 /// the world through the vertical plane(s) through `hold_world` that correspond to m.
 VecX mirrorPositions(const VecX& positions, const std::vector<Index>& perm, MirrorKind m, const Vec3& hold_world);
