@@ -118,7 +118,7 @@ TEST_F(DrapeDbCli, HugeYamlIsRefusedBeforeParsing) {
 }
 
 TEST_F(DrapeDbCli, UnknownMembersAreRefusedBeforeTheDatabaseIsOpened) {
-  for (const std::string& list : {"base,crumpled", "heap,heap", ""}) {
+  for (const char* list : {"base,crumpled", "heap,heap", ""}) {
     const ToolRun r = runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "towel", "--members", list});
     expectRefused(r, "--members");
   }
@@ -147,7 +147,22 @@ TEST_F(DrapeDbCli, AutoRefusesTheSettingsItChoosesAndItsOptionsNeedIt) {
   expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--question", "unravel"}), "unravel");
   expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--auto-spacings", "0.02"}),
                 "spacings");
+  // 5.8 and 5.5 cm both become 5 cm, the next finer spacing with a mirror-symmetric grid on the 30 cm square.
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--auto-spacings", "0.058,0.055"}),
+                "mirror-symmetric");
   EXPECT_FALSE(std::filesystem::exists(never));
+}
+
+TEST_F(DrapeDbCli, AnAutoBuildOfASymmetricTextileSearchesMirrorSymmetricGrids) {
+  const std::string path = dir_ + "/auto_symmetric.sqlite";
+  const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
+                                "1", "--auto", "--auto-spacings", "0.07,0.05", "--auto-tolerance", "10", "--auto-min-iou",
+                                "0", "--auto-samples", "1", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  // 7 cm gives no symmetric grid on the 30 cm square (0.30 / 0.07 = 4.3 steps); 6 cm does (5 steps).
+  EXPECT_NE(r.out.find("candidate spacings on mirror-symmetric grids: 0.06, 0.05 m"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("spacing 0.06 m"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("grid not symmetric"), std::string::npos) << r.out;
 }
 
 TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
