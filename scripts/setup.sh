@@ -13,6 +13,7 @@ PACKAGES=(
   libroslib-dev libvisualization-msgs-dev libtf2-geometry-msgs-dev libtf2-msgs-dev
   python3-geometry-msgs  # print_recognition.py imports the RecognitionResult message (PoseArray)
   libsqlite3-dev libeigen3-dev libopencv-dev libyaml-cpp-dev libgtest-dev googletest
+  libpq-dev postgresql  # the PostgreSQL backend; tests start a throw-away server (scripts/throwaway_postgres.sh)
 )
 
 missing=()

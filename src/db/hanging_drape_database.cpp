@@ -1,4 +1,5 @@
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/db/postgres_connection.h"
 
 #include <sqlite3.h>
 
@@ -68,6 +69,10 @@ std::vector<Vec2> outlineFromText(const std::string& text) {
 
 HangingDrapeDatabase::HangingDrapeDatabase(const std::string& path, const DatabaseOpenOptions& options)
     : path_(path), read_only_(options.read_only), busy_timeout_ms_(options.busy_timeout_ms) {
+  // Without this, SQLite would create a file named after the URL.
+  if (isPostgresUrl(path))
+    throw InvalidInputError("database '" + redactedUrl(path) +
+                            "': the drape database stores its data in SQLite files; PostgreSQL URLs are not accepted");
   int flags = options.read_only ? SqliteConnection::kReadOnly : SqliteConnection::kReadWrite;
   if (!options.read_only && options.create) flags |= SqliteConnection::kCreate;
   conn_ = SqliteConnection(path, flags);

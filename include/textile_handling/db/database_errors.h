@@ -1,9 +1,10 @@
 // Typed errors of the hanging-drape database (ROS-free). Every failure of the database layer is one
-// of these, so callers can tell a bad file from bad input from an SQLite failure. See docs/database.md.
+// of these, so callers can tell a bad file from bad input from an SQLite or PostgreSQL failure. See docs/database.md.
 #pragma once
 
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace textile_handling {
 namespace db {
@@ -23,6 +24,22 @@ class SqliteError : public DrapeDatabaseError {
 
  private:
   int code_;
+};
+
+/// A PostgreSQL call failed: the server refused the connection, a statement failed, or the connection was
+/// lost. `sqlstate()` is the five-character SQLSTATE ("23505" unique violation, "42P01" undefined table,
+/// ...; empty when the server sent none, e.g. no connection); `connectionLost()` tells a dead connection
+/// (retry after reconnecting) from a failed statement. Messages name the URL without its password.
+class PostgresError : public DrapeDatabaseError {
+ public:
+  PostgresError(const std::string& what, std::string sqlstate, bool connection_lost)
+      : DrapeDatabaseError(what), sqlstate_(std::move(sqlstate)), connection_lost_(connection_lost) {}
+  const std::string& sqlstate() const { return sqlstate_; }
+  bool connectionLost() const { return connection_lost_; }
+
+ private:
+  std::string sqlstate_;
+  bool connection_lost_;
 };
 
 /// The file's schema version is unknown (newer than this program), or the file is not a drape
