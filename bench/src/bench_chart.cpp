@@ -60,9 +60,9 @@ void drawMarker(cv::Mat& img, cv::Point c, int r, const SeriesStyle& s) {
 void drawFrame(cv::Mat& img, int left, int top, int pw, int ph, const std::string& x_label, const std::string& y_label,
                const std::string& title, const std::map<std::string, SeriesStyle>& style) {
   cv::rectangle(img, {left, top}, {left + pw, top + ph}, kInk);
-  cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.65, kInk, 1, cv::LINE_AA);
+  cv::putText(img, title, {left, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.65, kInk, 1, cv::LINE_AA);
   cv::putText(img, x_label, {left + pw / 2 - 80, img.rows - 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, kInk, 1, cv::LINE_AA);
-  cv::putText(img, y_label, {10, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
+  cv::putText(img, y_label, {10, top - 6}, cv::FONT_HERSHEY_SIMPLEX, 0.5, kInk, 1, cv::LINE_AA);
   int ly = top + 10;
   for (const auto& [name, s] : style) {
     drawMarker(img, {left + pw + 25, ly}, 6, s);
