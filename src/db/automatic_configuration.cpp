@@ -93,7 +93,7 @@ std::string AutomaticChoice::text() const {
   std::ostringstream t;
   t << "model " << model.name << " (" << model_reason << "), spacing " << number(spacing) << " m, integrator "
     << toString(settings.integrator) << ", policy " << toString(settings.policy)
-    << (converged ? "" : " (no candidate agreed with every finer one: the finest was taken)") << "\n";
+    << (converged ? "" : " (no candidate agreed with every finer one: the finest that completes was taken)") << "\n";
   for (const AutomaticChoiceEvidence& e : evidence) {
     t << "evidence " << e.model << " hold " << e.hold << " d " << number(e.spacing) << " vs " << number(e.finer_spacing)
       << ": ";
@@ -227,8 +227,23 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
       continue;
     }
     if (!chosen) {
-      choice.spacing = d.back();
+      // The finest candidate that completes on every sample: a choice must never be a failing run.
       choice.converged = false;
+      std::string why;
+      for (std::size_t k = d.size(); k-- > 0 && !chosen;) {
+        bool usable = true;
+        for (std::size_t i = 0; i < samples.size() && usable; ++i) {
+          const SearchRun& r = run(i, k);
+          if (!r.usable) why += "\n  d " + number(d[k]) + ": " + r.status;
+          usable = r.usable;
+        }
+        if (usable) {
+          choice.spacing = d[k];
+          chosen = true;
+        }
+      }
+      if (!chosen)
+        throw InvalidInputError("automatic choice (" + model_name + "): no candidate spacing completes on every sample:" + why);
     }
     choice.model = model;
     break;

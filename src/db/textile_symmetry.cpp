@@ -284,6 +284,7 @@ Real mirrorSymmetricSpacing(const TextileOutline& textile, const TextileSymmetry
   if (!(std::isfinite(spacing) && spacing > 0))
     throw std::invalid_argument("mirrorSymmetricSpacing: spacing must be finite and > 0");
   if (!symmetry.any()) return spacing;
+  constexpr std::size_t kMaxTries = 100;
   auto symmetric = [&](Real d) {
     std::string error;
     const ParticleGrid grid = ParticleGrid::rasterize(textile, d, &error);
@@ -302,6 +303,8 @@ Real mirrorSymmetricSpacing(const TextileOutline& textile, const TextileSymmetry
     for (long n = static_cast<long>(std::ceil(extent / spacing - 1e-9)); extent / n >= 0.5 * spacing; ++n)
       if (extent / n < spacing) tries.push_back(extent / n);
   std::sort(tries.begin(), tries.end(), std::greater<Real>());
+  // Each try rasterises the textile: bound the work for fine spacings on large textiles.
+  if (tries.size() > kMaxTries) tries.resize(kMaxTries);
   for (Real d : tries)
     if (symmetric(d)) return d;
   return spacing;

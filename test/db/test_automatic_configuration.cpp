@@ -82,7 +82,32 @@ TEST(AutomaticConfiguration, NoAgreementTakesTheFinestAndSaysSo) {
   EXPECT_FALSE(c.converged);
   EXPECT_DOUBLE_EQ(c.spacing, 0.02);
   EXPECT_EQ(c.evidence.size(), 3u);  // each candidate rejected at its first comparison
-  EXPECT_NE(c.text().find("the finest was taken"), std::string::npos);
+  EXPECT_NE(c.text().find("the finest that completes was taken"), std::string::npos);
+}
+
+TEST(AutomaticConfiguration, AFailingFinestCandidateIsNeverChosen) {
+  // 10 micrometres cannot be rasterised (a 30 cm square would need 9e8 nodes): every comparison with it
+  // fails, nothing converges, and the choice falls back to the finest candidate that completes.
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.spacings = {0.06, 0.04, 1e-5};
+  o.named_point_tolerance_m = 10;
+  o.min_mean_iou = 0;
+  const AutomaticChoice c = chooseConfiguration({hangingSquare()}, o);
+  EXPECT_FALSE(c.converged);
+  EXPECT_DOUBLE_EQ(c.spacing, 0.04) << c.text();
+  bool failure_named = false;
+  for (const AutomaticChoiceEvidence& e : c.evidence)
+    failure_named |= e.finer_spacing == 1e-5 && !e.agrees && e.status.find("d 1e-05") != std::string::npos;
+  EXPECT_TRUE(failure_named) << c.text();
+  // No candidate completes: an error naming the runs, not a choice that fails.
+  o.spacings = {2e-5, 1e-5};
+  try {
+    chooseConfiguration({hangingSquare()}, o);
+    ADD_FAILURE() << "a choice among candidates that all fail";
+  } catch (const InvalidInputError& e) {
+    EXPECT_NE(std::string(e.what()).find("no candidate spacing completes"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("d 1e-05"), std::string::npos) << e.what();
+  }
 }
 
 TEST(AutomaticConfiguration, TheChoiceIsTheCoarsestSpacingWhoseEvidenceAgrees) {

@@ -65,7 +65,7 @@ struct AutomaticChoice {
   std::string model_reason;        ///< why this model
   Real spacing = 0;                ///< [m]
   SimulationSettings settings;     ///< integrator, policy and steps as chosen
-  bool converged = false;          ///< false: no candidate agreed with every finer one; the finest was taken
+  bool converged = false;          ///< false: no candidate agreed with every finer one; the finest that completes was taken
   std::vector<AutomaticChoiceEvidence> evidence;
   Real search_wall_s = 0;          ///< wall time of the whole search [s]
   /// Multi-line report: the choice, the reason, the tolerances and one line per comparison.
@@ -77,8 +77,10 @@ struct AutomaticChoice {
 /// Chooses for the scenes `samples` (the same textile and material, one scene per sampled hold point; their
 /// model, spacing and integrator settings are ignored, the rest of each spec is kept). Every simulation
 /// runs to rest with the chosen settings; a sample that fails or does not reach rest at a spacing counts
-/// as disagreement, and a particle model that diverges switches the search to Choi-Ko. Throws
-/// InvalidInputError for no samples or bad options; simulation failures never throw.
+/// as disagreement, and a particle model that diverges switches the search to Choi-Ko. If no candidate
+/// agrees with every finer one, the finest candidate that completes on every sample is taken. Throws
+/// InvalidInputError for no samples, bad options, or no candidate that completes on every sample (the
+/// message lists each failing run).
 AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, const AutomaticChoiceOptions& options);
 
 /// Up to `count` hold points spread over `candidates` (farthest-point sampling from the first one), for

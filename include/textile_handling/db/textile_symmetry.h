@@ -90,8 +90,8 @@ std::vector<Index> mirrorPermutation(const ParticleGrid& grid, const TextileSymm
 /// The largest spacing d' in [spacing/2, spacing] at which the particle grid of `textile` is symmetric under
 /// every mirror of `symmetry` (mirrorPermutation() succeeds), so that a database build at d' simulates only
 /// the fundamental domain's hold points and mirrors the rest. Tried: `spacing`, then the bounding box's width
-/// and height divided by whole numbers, largest first. Returns `spacing` when the symmetry has no mirror or
-/// no such spacing exists in the range. Example: the 64 x 46 cm towel at 0.75 cm gives 2/3 cm (96 x 69
+/// and height divided by whole numbers, largest first, at most 100 of them. Returns `spacing` when the
+/// symmetry has no mirror or no tried spacing gives a symmetric grid. Example: the 64 x 46 cm towel at 0.75 cm gives 2/3 cm (96 x 69
 /// steps). Throws std::invalid_argument for a spacing that is not finite and > 0.
 Real mirrorSymmetricSpacing(const TextileOutline& textile, const TextileSymmetry& symmetry, Real spacing);
 
