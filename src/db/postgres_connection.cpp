@@ -2,7 +2,10 @@
 
 #include <libpq-fe.h>
 
+#include <poll.h>
+
 #include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -213,6 +216,47 @@ std::int64_t PgConnection::queryInt(const std::string& sql, std::int64_t fallbac
   const PgResult r = query(sql);
   if (r.rows() == 0 || r.isNull(0, 0)) return fallback;
   return r.getInt(0, 0);
+}
+
+namespace {
+
+void checkChannel(const std::string& channel) {
+  bool ok = !channel.empty() && channel.size() <= 63 && !(channel[0] >= '0' && channel[0] <= '9');
+  for (char c : channel) ok = ok && ((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_');
+  if (!ok)
+    throw InvalidInputError("PostgreSQL channel '" + channel.substr(0, 80) +
+                            "': use a lower-case identifier (letters, digits, '_', at most 63 characters)");
+}
+
+}  // namespace
+
+void PgConnection::listen(const std::string& channel) {
+  checkChannel(channel);
+  exec("LISTEN " + channel);
+}
+
+void PgConnection::notify(const std::string& channel, const std::string& payload) {
+  checkChannel(channel);
+  if (payload.size() > 7999) throw InvalidInputError("PostgreSQL notification payload longer than 7999 bytes");
+  query("SELECT pg_notify($1, $2)", {PgParam(channel), PgParam(payload)});
+}
+
+std::optional<PgNotification> PgConnection::waitForNotification(int timeout_ms) {
+  if (!conn_) fail(nullptr, "(waiting for a notification)");
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(timeout_ms > 0 ? timeout_ms : 0);
+  for (;;) {
+    if (PQconsumeInput(conn_) == 0) fail(nullptr, "(waiting for a notification)");
+    if (PGnotify* n = PQnotifies(conn_)) {
+      PgNotification out{n->relname ? n->relname : "", n->extra ? n->extra : "", n->be_pid};
+      PQfreemem(n);
+      return out;
+    }
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return std::nullopt;
+    pollfd p{PQsocket(conn_), POLLIN, 0};
+    if (p.fd < 0) fail(nullptr, "(waiting for a notification)");
+    ::poll(&p, 1, static_cast<int>(left.count()));
+  }
 }
 
 // ---- transaction ------------------------------------------------------------------------------

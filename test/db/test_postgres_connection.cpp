@@ -255,3 +255,31 @@ TEST_F(PostgresConnectionTest, AConnectionKilledByTheServerSaysItWasLost) {
   }
   EXPECT_FALSE(victim.isOk());
 }
+
+TEST_F(PostgresConnectionTest, ListenersHearCommittedNotificationsOnly) {
+  // How a recognizer learns that a builder changed the database.
+  PgConnection listener = another();
+  const std::string channel = schema_ + "_changed";
+  listener.listen(channel);
+  EXPECT_FALSE(listener.waitForNotification(0));  // nothing yet, no wait
+  {
+    PgTransaction tx(*conn_);
+    conn_->notify(channel, "textile towel generation 3");
+    EXPECT_FALSE(listener.waitForNotification(200));  // not before the commit
+    tx.commit();
+  }
+  const auto n = listener.waitForNotification(5000);
+  ASSERT_TRUE(n);
+  EXPECT_EQ(n->channel, channel);
+  EXPECT_EQ(n->payload, "textile towel generation 3");
+  EXPECT_GT(n->sender_pid, 0);
+  {
+    PgTransaction tx(*conn_);
+    conn_->notify(channel, "rolled back");
+  }  // rolled back: never delivered
+  EXPECT_FALSE(listener.waitForNotification(300));
+  // Channel names are checked before any SQL is sent.
+  EXPECT_THROW(listener.listen("x; DROP TABLE jobs"), InvalidInputError);
+  EXPECT_THROW(conn_->notify("Upper", "p"), InvalidInputError);
+  EXPECT_THROW(conn_->notify(channel, std::string(8000, 'p')), InvalidInputError);
+}

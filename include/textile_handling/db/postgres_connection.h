@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -70,6 +71,13 @@ class PgResult {
   std::shared_ptr<pg_result> result_;
 };
 
+/// A notification received on a channel this connection listens to (LISTEN/NOTIFY).
+struct PgNotification {
+  std::string channel;
+  std::string payload;
+  int sender_pid = 0;  ///< the notifying server process
+};
+
 /// An open connection to a PostgreSQL server (closed by the destructor).
 class PgConnection {
  public:
@@ -93,6 +101,15 @@ class PgConnection {
   /// Single integer of a query returning one row and column; `fallback` when no row.
   std::int64_t queryInt(const std::string& sql, std::int64_t fallback = 0);
   bool inTransaction() const;
+  /// Starts listening on `channel` (a lower-case identifier: letters, digits, '_', at most 63 characters;
+  /// anything else is an InvalidInputError, so no text reaches the SQL unchecked). Throws PostgresError.
+  void listen(const std::string& channel);
+  /// Sends `payload` (at most 7999 bytes) to the listeners of `channel`; delivered when the current
+  /// transaction commits (at once outside one). Throws InvalidInputError, PostgresError.
+  void notify(const std::string& channel, const std::string& payload);
+  /// The next notification, waiting at most `timeout_ms` (0: only what has arrived); nullopt on timeout.
+  /// Throws PostgresError (connectionLost()) if the connection dies while waiting.
+  std::optional<PgNotification> waitForNotification(int timeout_ms);
   pg_conn* handle() const { return conn_; }
 
  private:
