@@ -113,6 +113,13 @@ void AutomaticChoice::applyTo(DrapeSceneSpec& spec) const {
   spec.settings = settings;
 }
 
+std::vector<Real> distinctSpacingsCoarseFirst(std::vector<Real> spacings) {
+  std::sort(spacings.begin(), spacings.end(), std::greater<Real>());
+  spacings.erase(std::unique(spacings.begin(), spacings.end(), [](Real x, Real y) { return std::abs(x - y) <= 1e-9 * x; }),
+                 spacings.end());
+  return spacings;
+}
+
 std::vector<Vec2> spreadSample(const std::vector<Vec2>& candidates, int count) {
   std::vector<Vec2> out;
   if (candidates.empty() || count <= 0) return out;
@@ -135,9 +142,7 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
   options.validate();
   if (samples.empty()) throw InvalidInputError("automatic choice: no sample scenes");
   const Clock::time_point t0 = Clock::now();
-  std::vector<Real> d = options.spacings;
-  std::sort(d.begin(), d.end(), std::greater<Real>());
-  d.erase(std::unique(d.begin(), d.end(), [](Real x, Real y) { return std::abs(x - y) <= 1e-9 * x; }), d.end());
+  const std::vector<Real> d = distinctSpacingsCoarseFirst(options.spacings);
   if (d.size() < 2) throw InvalidInputError("automatic choice: spacings needs at least two different candidates");
 
   AutomaticChoice choice;

@@ -4,10 +4,16 @@
 #include <cmath>
 #include <cstring>
 
+#include "little_endian.h"
 #include "textile_handling/db/database_errors.h"
 
 namespace textile_handling {
 namespace db {
+
+using internal::getDouble;
+using internal::getLE;
+using internal::putDouble;
+using internal::putLE;
 
 namespace {
 
@@ -32,29 +38,6 @@ bool hostIsLittleEndian() {
   std::uint8_t b;
   std::memcpy(&b, &one, 1);
   return b == 1;
-}
-
-template <typename T>
-void putLE(std::uint8_t* p, T v) {
-  for (std::size_t k = 0; k < sizeof(T); ++k) p[k] = static_cast<std::uint8_t>((static_cast<std::uint64_t>(v) >> (8 * k)) & 0xFFu);
-}
-template <typename T>
-T getLE(const std::uint8_t* p) {
-  std::uint64_t v = 0;
-  for (std::size_t k = 0; k < sizeof(T); ++k) v |= static_cast<std::uint64_t>(p[k]) << (8 * k);
-  return static_cast<T>(v);
-}
-
-void putDouble(std::uint8_t* p, double d) {
-  std::uint64_t u;
-  std::memcpy(&u, &d, 8);
-  putLE<std::uint64_t>(p, u);
-}
-double getDouble(const std::uint8_t* p) {
-  const std::uint64_t u = getLE<std::uint64_t>(p);
-  double d;
-  std::memcpy(&d, &u, 8);
-  return d;
 }
 
 void checkCrc(const std::uint8_t* data, std::size_t size, const std::string& what, const char* kind) {

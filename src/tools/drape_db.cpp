@@ -243,9 +243,7 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   if (sym.any()) {
     std::vector<Real> snapped;
     for (Real d : o.spacings) snapped.push_back(mirrorSymmetricSpacing(c.textile, sym, d));
-    std::sort(snapped.begin(), snapped.end(), std::greater<Real>());
-    snapped.erase(std::unique(snapped.begin(), snapped.end(), [](Real x, Real y) { return std::abs(x - y) <= 1e-9 * x; }),
-                  snapped.end());
+    snapped = distinctSpacingsCoarseFirst(snapped);
     if (snapped.size() < 2)
       throw UsageError("--auto-spacings: the candidates give fewer than two different mirror-symmetric grids");
     std::ostringstream line;

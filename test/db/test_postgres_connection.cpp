@@ -6,7 +6,6 @@
 
 #include <cctype>
 #include <cmath>
-#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
@@ -15,6 +14,7 @@
 #include <vector>
 
 #include "../test_support.h"
+#include "../tools/tool_process.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/postgres_connection.h"
 
@@ -23,18 +23,13 @@ using namespace textile_handling::db;
 
 namespace {
 
-std::string runCommand(const std::string& cmd, int* status) {
-  std::string out;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (!p) {
-    *status = -1;
-    return out;
-  }
-  char buf[256];
-  while (std::fgets(buf, sizeof buf, p)) out += buf;
-  *status = ::pclose(p);
-  while (!out.empty() && (out.back() == '\n' || out.back() == ' ')) out.pop_back();
-  return out;
+/// The throw-away server script's stdout (its URL on start), or its stderr on failure; at most 120 s.
+std::string runServerScript(const std::vector<std::string>& args, bool* ok) {
+  const tool_process::ToolRun r = tool_process::runTool("/bin/bash", args);
+  *ok = r.exit_code == 0;
+  std::string text = *ok ? r.out : r.err + r.out;
+  while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.pop_back();
+  return text;
 }
 
 const std::string kScript = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/scripts/throwaway_postgres.sh";
@@ -48,17 +43,17 @@ class PostgresConnectionTest : public ::testing::Test {
       return;
     }
     server_dir_ = test_support::freshTempDir("th_pg_connection");
-    int status = 0;
-    url_ = runCommand("bash " + kScript + " start " + server_dir_ + " 2>&1", &status);
-    if (status != 0) {
+    bool ok = false;
+    url_ = runServerScript({kScript, "start", server_dir_}, &ok);
+    if (!ok) {
       start_error_ = "throwaway_postgres.sh start failed: " + url_;
       url_.clear();
     }
   }
   static void TearDownTestSuite() {
     if (!server_dir_.empty() && !url_.empty()) {
-      int status = 0;
-      runCommand("bash " + kScript + " stop " + server_dir_ + " 2>&1", &status);
+      bool ok = false;
+      runServerScript({kScript, "stop", server_dir_}, &ok);
     }
     if (!server_dir_.empty()) {
       std::error_code ec;

@@ -83,6 +83,10 @@ struct AutomaticChoice {
 /// message lists each failing run).
 AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, const AutomaticChoiceOptions& options);
 
+/// `spacings` sorted coarse to fine with near-equal values (within 1e-9 relative) kept once, the order in
+/// which the search tries candidates.
+std::vector<Real> distinctSpacingsCoarseFirst(std::vector<Real> spacings);
+
 /// Up to `count` hold points spread over `candidates` (farthest-point sampling from the first one), for
 /// the resolution search of a database build. Shapes: textile-frame points [m].
 std::vector<Vec2> spreadSample(const std::vector<Vec2>& candidates, int count);
