@@ -12,6 +12,8 @@
 #include <Eigen/LU>
 #include <cmath>
 
+#include "parallel_size.h"
+
 namespace textile_handling {
 
 namespace {
@@ -64,7 +66,7 @@ bool BlockJacobi::update(const BlockSparseMatrix& A, const std::vector<char>& no
   pinned_ = &node_pinned;
   const bool plain = kind == Inverse::kPlain;
   bool ok = true;
-#pragma omp parallel for schedule(static) reduction(&& : ok)
+#pragma omp parallel for schedule(static) reduction(&& : ok) if (parallelWorthIt(n, b_))
   for (Index i = 0; i < n; ++i) {
     if (node_pinned[i]) continue;
     const Real* blk = A.block(p.diagonal(i));
@@ -96,7 +98,7 @@ void BlockJacobi::apply(const VecX& r, VecX& z, Real weight, bool add) const {
   const Index n = static_cast<Index>((*pinned_).size());
   const int bb = b_ * b_;
   if (!add) z.setZero(r.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b_))
   for (Index i = 0; i < n; ++i) {
     if ((*pinned_)[i]) continue;
     const Real* m = inv_.data() + static_cast<size_t>(i) * bb;

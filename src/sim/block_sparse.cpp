@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "parallel_size.h"
+
 namespace textile_handling {
 
 BlockPattern::BlockPattern(Index num_nodes, int block,
@@ -58,7 +60,7 @@ void multiplyFixed(const BlockPattern& p, const std::vector<Real>& values, const
   const auto& rs = p.rowStart();
   const auto& col = p.column();
   const Index n = p.numNodes();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, B))
   for (Index i = 0; i < n; ++i) {
     BlockVec acc = BlockVec::Zero();
     for (Index k = rs[i]; k < rs[i + 1]; ++k) {
@@ -81,7 +83,7 @@ void BlockSparseMatrix::multiply(const VecX& x, VecX& y) const {
   const int b = p.blockSize();
   const auto& rs = p.rowStart();
   const auto& col = p.column();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallelWorthIt(p.numNodes(), b))
   for (Index i = 0; i < p.numNodes(); ++i) {
     for (int r = 0; r < b; ++r) {
       Real acc = 0;

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "textile_handling/sim/cloth_triangles.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -26,7 +27,8 @@ bool ImplicitEulerBase::assembleSystem(ClothModel& model, const VecX& x, const V
   const auto& K = jac_.dfdx.values();
   const auto& D = jac_.dfdv.values();
   const Real h2 = h * h;
-#pragma omp parallel for schedule(static)
+  const bool parallel = parallelWorthIt(model.numNodes(), model.dofsPerNode());
+#pragma omp parallel for schedule(static) if (parallel)
   for (Index k = 0; k < static_cast<Index>(A.size()); ++k) A[k] = -h * D[k] - h2 * K[k];
   model.addMassMatrix(x_mass, 1.0, system_);  // M is held constant over the step
   return true;

@@ -15,6 +15,7 @@
 #include "implicit_euler_base.h"
 #include "sparse_ldlt.h"
 #include "system_preconditioner.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -289,7 +290,7 @@ class BlockDiagonalEuler : public ImplicitEulerBase {
     VecX dv = VecX::Zero(n * b);
     bool singular = false;
     if (b == 3) {
-#pragma omp parallel for schedule(static) reduction(|| : singular)
+#pragma omp parallel for schedule(static) reduction(|| : singular) if (parallelWorthIt(n, b))
       for (Index i = 0; i < n; ++i) {
         if (mask[i]) continue;
         // Closed-form 3x3 inverse (adjugate / determinant), as in the thesis.

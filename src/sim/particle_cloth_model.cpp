@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "textile_handling/sim/textile_geometry.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -211,13 +212,14 @@ ForceReport ParticleClothModel::computeForces(const VecX& x, const VecX& v, VecX
     K = &jac->dfdx;
   }
   Index degenerate = 0;
+  const bool parallel = n >= kParallelMinStencils;  // one stencil per particle
   for (const auto& group : colour_) {
     const Index m = static_cast<Index>(group.size());
-#pragma omp parallel for schedule(static) reduction(+ : degenerate)
+#pragma omp parallel for schedule(static) reduction(+ : degenerate) if (parallel)
     for (Index k = 0; k < m; ++k) degenerate += addStencil(stencils_[group[k]], x, f, K, nullptr);
   }
   // Per-particle external forces: gravity (-z) and drag.
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallel)
   for (Index r = 0; r < n; ++r) {
     if (options_.gravity) f[3 * r + 2] -= mass_[3 * r] * kGravity;
     if (options_.drag && drag_coeff_[r] > 0) {
@@ -266,7 +268,7 @@ Real ParticleClothModel::potentialEnergy(const VecX& x) const {
   // rollback, to re-base its energy check.
   const Index n = numNodes();
   std::vector<Real> per(static_cast<size_t>(n), 0.0);
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (n >= kParallelMinStencils)
   for (Index r = 0; r < n; ++r) per[static_cast<size_t>(r)] = stencilEnergy(stencils_[static_cast<size_t>(r)], x);
   Real e = 0;
   for (Index r = 0; r < n; ++r) {

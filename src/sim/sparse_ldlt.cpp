@@ -1,4 +1,5 @@
 #include "sparse_ldlt.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -36,7 +37,8 @@ bool BlockSparseLdlt::factorize(const BlockSparseMatrix& a, const std::vector<ch
   Real* out = lower_.valuePtr();
   const Index nnz = static_cast<Index>(map_.size());
   const bool any_pinned = !dof_pinned.empty();
-#pragma omp parallel for schedule(static)
+  const bool parallel = parallelWorthIt(a.pattern().numNodes(), a.pattern().blockSize());
+#pragma omp parallel for schedule(static) if (parallel)
   for (Index k = 0; k < nnz; ++k) {
     const Index r = row_of_[k], c = col_of_[k];
     if (any_pinned && (dof_pinned[r] || dof_pinned[c])) out[k] = r == c ? 1.0 : 0.0;

@@ -3,6 +3,8 @@
 
 #include <algorithm>
 
+#include "parallel_size.h"
+
 namespace textile_handling {
 
 // Two-level preconditioner: block-Jacobi smoothing on the fine level plus an exact solve of the
@@ -101,7 +103,7 @@ class CoarseLevel {
     const int bb = b_ * b_;
     const auto& rs = coarse_pattern_->rowStart();
     const auto& fine = A.values();
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallelWorthIt(static_cast<Index>(agg_.size()), b_))
     for (Index a = 0; a < num_agg_; ++a) {
       std::fill(coarse_.block(rs[a]), coarse_.block(rs[a + 1]), 0.0);
       for (Index g = gather_start_[a]; g < gather_start_[a + 1]; ++g) {
@@ -117,7 +119,8 @@ class CoarseLevel {
   // z += P Ac^-1 P^T r.
   void addCoarseCorrection(const VecX& r, VecX& z) {
     rc_.resize(static_cast<Index>(num_agg_) * b_);
-#pragma omp parallel for schedule(static)
+    const bool parallel = parallelWorthIt(static_cast<Index>(agg_.size()), b_);
+#pragma omp parallel for schedule(static) if (parallel)
     for (Index a = 0; a < num_agg_; ++a) {
       auto acc = rc_.segment(a * b_, b_);
       acc.setZero();
@@ -125,7 +128,7 @@ class CoarseLevel {
     }
     solver_.solve(rc_, zc_);
     const Index n = static_cast<Index>(agg_.size());
-#pragma omp parallel for schedule(static)
+#pragma omp parallel for schedule(static) if (parallel)
     for (Index i = 0; i < n; ++i)
       if (agg_[i] >= 0) z.segment(i * b_, b_) += zc_.segment(agg_[i] * b_, b_);
   }

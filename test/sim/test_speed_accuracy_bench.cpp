@@ -24,13 +24,13 @@ TEST(SpeedAccuracyScene, ACoarseRunIsComparedWithAFinerReference) {
   c.model.label = "particle_kes";
   c.model.spec = ClothModelSpec("particle_kes");
   c.spacing = 0.06;
-  AccuracyRunLimits limits;
-  limits.max_wall_s = 60;
+  AccuracyRunLimits limits;  // wall caps far above the runs' cost: this test asserts shapes, not speed
+  limits.max_wall_s = 600;
   const AccuracyRun coarse = runAccuracyScene(AccuracyScene::kSquareCorner, c, limits);
   c.spacing = 0.03;
   const AccuracyRun ref = runAccuracyScene(AccuracyScene::kSquareCorner, c, limits, true);
-  ASSERT_EQ(coarse.status, "rest") << coarse.note;
-  ASSERT_EQ(ref.status, "rest") << ref.note;
+  ASSERT_EQ(coarse.status, "rest") << coarse.note << " (" << coarse.wall_s << " s)";
+  ASSERT_EQ(ref.status, "rest") << ref.note << " (" << ref.wall_s << " s)";
   EXPECT_TRUE(ref.held_at_one_point);
   const db::DrapeDifference d =
       db::measureDrapeDifference({&coarse.grid, coarse.positions}, {&ref.grid, ref.positions}, ref.view_centre,
