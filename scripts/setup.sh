@@ -14,6 +14,7 @@ PACKAGES=(
   python3-geometry-msgs  # print_recognition.py imports the RecognitionResult message (PoseArray)
   libsqlite3-dev libeigen3-dev libopencv-dev libyaml-cpp-dev libgtest-dev googletest
   libpq-dev postgresql  # the PostgreSQL backend; tests start a throw-away server (scripts/throwaway_postgres.sh)
+  openmpi-bin libopenmpi-dev  # the MPI build farm (drape_db build --mpi)
 )
 
 missing=()

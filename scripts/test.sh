@@ -15,6 +15,17 @@ RESULTS="$WS/build/test_results"
 rm -rf "$RESULTS"
 cd "$WS"
 JOBS="${TEXTILE_HANDLING_JOBS:-$(nproc)}"
+# One throw-away PostgreSQL server for every test that needs one (the database suites' PostgreSQL runs,
+# the libpq tests); each test works in a schema of its own. Stopped and removed on exit.
+PG_DIR="$(mktemp -d /tmp/th_test_postgres.XXXXXX)"
+stop_postgres() { bash "$REPO/scripts/throwaway_postgres.sh" stop "$PG_DIR" > /dev/null 2>&1 || true; rm -rf "$PG_DIR"; }
+trap stop_postgres EXIT
+if TH_TEST_POSTGRES_URL="$(bash "$REPO/scripts/throwaway_postgres.sh" start "$PG_DIR")"; then
+  export TH_TEST_POSTGRES_URL
+  echo "[test] PostgreSQL test server at $TH_TEST_POSTGRES_URL"
+else
+  echo "[test] could not start the PostgreSQL test server; the tests that need it will fail"
+fi
 echo "[test] building and running tests"
 # run_tests returns 0 even when tests fail; the result files are judged below.
 set +e

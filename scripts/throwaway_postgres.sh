@@ -6,7 +6,8 @@
 #   bash scripts/throwaway_postgres.sh start DIR [PORT]   # prints the database URL on stdout
 #   bash scripts/throwaway_postgres.sh stop DIR
 #
-# start: creates DIR (must not hold a running server), initialises a cluster in DIR/data, starts it on
+# start: creates DIR (must not hold a running server), initialises a cluster in DIR/data (or, if DIR holds
+# the data of a server this script stopped, keeps it: a restart), starts it on
 # PORT (default: a free port from 54320 up) listening on 127.0.0.1 only, creates database
 # textile_handling and prints postgresql://postgres@127.0.0.1:PORT/textile_handling. As root the
 # server runs as the system user postgres (initdb refuses root). stop: fast shutdown; DIR can then be
@@ -32,12 +33,17 @@ case "$CMD" in
     DIR=$(cd "$DIR" && pwd)
     if [ -f "$DIR/data/postmaster.pid" ]; then echo "throwaway_postgres: $DIR already has a server" >&2; exit 1; fi
     [ "$(id -u)" -eq 0 ] && chown postgres: "$DIR"
-    as_owner "$BIN/initdb" -D "$DIR/data" -U postgres --auth=trust -E UTF8 --locale=C.UTF-8 > "$DIR/initdb.log" 2>&1 || {
-      tail -n 20 "$DIR/initdb.log" >&2; exit 1; }
+    fresh=1
+    if [ -d "$DIR/data" ]; then
+      fresh=0  # a stopped server of this script: start it again with its data (a restart)
+    else
+      as_owner "$BIN/initdb" -D "$DIR/data" -U postgres --auth=trust -E UTF8 --locale=C.UTF-8 > "$DIR/initdb.log" 2>&1 || {
+        tail -n 20 "$DIR/initdb.log" >&2; exit 1; }
+    fi
     as_owner "$BIN/pg_ctl" -D "$DIR/data" -l "$DIR/server.log" -w -t 60 \
       -o "-p $PORT -c listen_addresses=127.0.0.1 -k $DIR -c fsync=on" start > /dev/null || {
       tail -n 20 "$DIR/server.log" >&2; exit 1; }
-    as_owner "$BIN/createdb" -h 127.0.0.1 -p "$PORT" -U postgres textile_handling
+    [ $fresh = 1 ] && as_owner "$BIN/createdb" -h 127.0.0.1 -p "$PORT" -U postgres textile_handling
     echo "postgresql://postgres@127.0.0.1:$PORT/textile_handling"
     ;;
   stop)

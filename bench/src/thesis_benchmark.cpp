@@ -268,7 +268,7 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
   {
     const std::string big_path = cfg.out_dir + "/bench_10k.sqlite";
     removeDatabase(big_path);
-    db.withConnection([](SqliteConnection& conn) {
+    db.withConnection([](SqlConnection& conn) {
       conn.exec("PRAGMA wal_checkpoint(TRUNCATE)");
       return 0;
     });
@@ -283,14 +283,14 @@ std::vector<BenchmarkRow> runThesisBenchmark(const ThesisBenchmarkConfig& cfg) {
     long towel_kept = static_cast<long>(index.matcher.size());
     const std::vector<std::string> passes = DrapeDatabaseBuilder::parameterTexts(base);
     for (std::size_t k = passes.size(); k-- > 1 && towel_kept > cfg.entries_10k;) {
-      big_db.withConnection([&](SqliteConnection& conn) {
-        SqliteTransaction tx(conn);
-        SqliteStatement n = conn.prepare(
+      big_db.withConnection([&](SqlConnection& conn) {
+        SqlTransaction tx(conn);
+        SqlStatement n = conn.prepare(
             "SELECT count(*) FROM views v JOIN simulations s ON s.id = v.simulation_id WHERE s.parameters = ?");
         n.bind(1, passes[k]);
         n.step();
         towel_kept -= static_cast<long>(n.getInt(0));
-        SqliteStatement del = conn.prepare("DELETE FROM simulations WHERE parameters = ?");  // views cascade
+        SqlStatement del = conn.prepare("DELETE FROM simulations WHERE parameters = ?");  // views cascade
         del.bind(1, passes[k]);
         del.run();
         tx.commit();

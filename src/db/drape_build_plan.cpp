@@ -88,7 +88,7 @@ PassPlan planPass(HangingDrapeDatabase& db, const DrapeBuildConfig& c, const std
       orphan_failures.emplace_back(ids[k], "source simulation " + std::to_string(ids[src]) + " failed: " + s.failure_reason);
     }
   }
-  for (const auto& [id, reason] : orphan_failures) db.markFailed(id, reason);
+  for (const auto& [id, reason] : orphan_failures) db.markFailed(id, reason, /*skip_done=*/true);
   // Derive-only jobs first (cheap), then simulations in plan order.
   std::stable_sort(jobs.begin(), jobs.end(), [](const BuildJob& a, const BuildJob& b) { return !a.simulate && b.simulate; });
   pp.simulations = static_cast<int>(std::count_if(jobs.begin(), jobs.end(), [](const BuildJob& j) { return j.simulate; }));

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -66,13 +67,18 @@ struct PassContext {
 struct JobOutcome {
   std::string failure;     ///< non-empty: the simulation failed; the source and its mirror rows are marked failed
   double wall_time_s = 0;  ///< the simulation's wall time (a simulated job that succeeded)
+  bool superseded = false; ///< another builder stored the job's rows first; nothing was written
 };
 
 /// Worker: runs one job. Simulates the source (simulateRow) or loads it (loadDoneRow), derives its
 /// mirror rows (mirrorRows) and stores all of them in one transaction. A failed simulation is no
-/// exception: it is marked in the database and returned. Throws DrapeDatabaseError (database failures,
+/// exception: it is marked in the database and returned. Rows another builder finished meanwhile are
+/// left as they are (JobOutcome::superseded). Throws DrapeDatabaseError (database failures,
 /// damaged stored rows), which ends the pass.
-JobOutcome runJob(HangingDrapeDatabase& db, const PassContext& ctx, const BuildJob& job);
+/// How a job's simulation runs: simulateRow here, or on a RemoteSimulator.
+using RowSimulator = std::function<SimulationResult(const BuildJob& job, std::string* failure)>;
+
+JobOutcome runJob(HangingDrapeDatabase& db, const PassContext& ctx, const BuildJob& job, const RowSimulator& simulate);
 
 /// The simulation of one hold point (retried once with smaller steps when configured) with its views;
 /// `simulation_id` set. On failure returns an empty result and the reason in *failure.

@@ -105,13 +105,16 @@ SimulationResult loadDoneRow(HangingDrapeDatabase& db, std::int64_t id) {
   return src;
 }
 
-JobOutcome runJob(HangingDrapeDatabase& db, const PassContext& ctx, const BuildJob& job) {
+JobOutcome runJob(HangingDrapeDatabase& db, const PassContext& ctx, const BuildJob& job, const RowSimulator& simulate) {
   JobOutcome out;
-  SimulationResult src = job.simulate ? simulateRow(ctx, job, &out.failure) : loadDoneRow(db, job.id);
+  SimulationResult src = job.simulate ? simulate(job, &out.failure) : loadDoneRow(db, job.id);
+  if (job.simulate && out.failure.empty() && src.simulation_id != job.id)
+    throw InvalidInputError("the simulation of row " + std::to_string(job.id) + " came back as row " +
+                            std::to_string(src.simulation_id));
   if (!out.failure.empty()) {
-    db.markFailed(job.id, out.failure);
+    out.superseded = !db.markFailed(job.id, out.failure, /*skip_done=*/true);
     for (std::size_t k : job.derived)
-      db.markFailed(ctx.ids[k], "source simulation " + std::to_string(job.id) + " failed: " + out.failure);
+      db.markFailed(ctx.ids[k], "source simulation " + std::to_string(job.id) + " failed: " + out.failure, true);
     return out;
   }
   std::vector<SimulationResult> derived = mirrorRows(ctx, src, job.id, job.derived);
@@ -122,7 +125,7 @@ JobOutcome runJob(HangingDrapeDatabase& db, const PassContext& ctx, const BuildJ
   }
   for (auto& d : derived) results.push_back(std::move(d));
   // One transaction: the simulation, its views, its mirrors and their views.
-  if (!results.empty()) db.storeResults(results);
+  if (!results.empty()) out.superseded = db.storeResults(results, /*skip_done=*/true) == 0;
   return out;
 }
 

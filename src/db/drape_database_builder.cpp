@@ -2,8 +2,17 @@
 
 #include <omp.h>
 
+#include <signal.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
 #include <cmath>
 #include <cstdio>
 #include <exception>
@@ -193,6 +202,7 @@ void accumulateBuildReport(DrapeBuildReport& total, const DrapeBuildReport& part
   total.simulated_now += part.simulated_now;
   total.failed_now += part.failed_now;
   total.derived_now += part.derived_now;
+  total.done_elsewhere += part.done_elsewhere;
   total.wall_seconds += part.wall_seconds;
   total.simulation_seconds += part.simulation_seconds;
   total.failures.insert(total.failures.end(), part.failures.begin(), part.failures.end());
@@ -249,11 +259,97 @@ void checkBuildMemory(const DrapeBuildConfig& c, Index nodes, int simulations) {
                     static_cast<std::size_t>(at_once));
 }
 
+// "<host>:<pid>:<n>": unique among the builders of one database, and it tells an operator where a
+// claimed row runs.
+std::string defaultClaimOwner() {
+  static std::atomic<int> counter{0};
+  char host[256] = "host";
+  if (::gethostname(host, sizeof host) != 0) std::snprintf(host, sizeof host, "host");
+  host[sizeof host - 1] = '\0';
+  return std::string(host) + ":" + std::to_string(::getpid()) + ":" + std::to_string(counter++);
+}
+
+// True if `owner` ("<host>:<pid>:<n>", defaultClaimOwner) names a process of this machine that no longer
+// exists: its claims need not be waited for. (A reused pid only makes us wait for the lease.)
+bool ownerIsDeadHere(const std::string& owner) {
+  const std::size_t a = owner.rfind(':');
+  if (a == std::string::npos || a == 0) return false;
+  const std::size_t b = owner.rfind(':', a - 1);
+  if (b == std::string::npos) return false;
+  char host[256] = "";
+  if (::gethostname(host, sizeof host) != 0) return false;
+  host[sizeof host - 1] = '\0';
+  if (owner.substr(0, b) != host) return false;
+  char* end = nullptr;
+  const long pid = std::strtol(owner.c_str() + b + 1, &end, 10);
+  if (end != owner.c_str() + a || pid <= 0) return false;
+  return ::kill(static_cast<pid_t>(pid), 0) == -1 && errno == ESRCH;
+}
+
+// Renews `owner`'s claims every lease / 3 while a pass runs, and releases what is left (rows of a
+// stopped build) when the pass ends. A failed renewal is retried at the next tick: the worst case is
+// that another builder takes a row over, and storing skips rows finished elsewhere.
+class ClaimRenewal {
+ public:
+  ClaimRenewal(HangingDrapeDatabase& db, const std::string& owner, double lease_s)
+      : db_(db), owner_(owner), period_(lease_s / 3) {
+    thread_ = std::thread([this] { run(); });
+  }
+  ~ClaimRenewal() {
+    {
+      std::lock_guard<std::mutex> lock(mu_);
+      done_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+    try {
+      db_.releaseClaims(owner_);
+    } catch (const std::exception&) {
+      // The claims run out by themselves.
+    }
+  }
+  ClaimRenewal(const ClaimRenewal&) = delete;
+  ClaimRenewal& operator=(const ClaimRenewal&) = delete;
+
+ private:
+  void run() {
+    std::unique_lock<std::mutex> lock(mu_);
+    while (!cv_.wait_for(lock, period_, [this] { return done_; })) {
+      lock.unlock();
+      try {
+        db_.renewClaims(owner_, period_.count() * 3);
+      } catch (const std::exception&) {
+      }
+      lock.lock();
+    }
+  }
+  HangingDrapeDatabase& db_;
+  std::string owner_;
+  std::chrono::duration<double> period_;
+  std::mutex mu_;
+  std::condition_variable cv_;
+  bool done_ = false;
+  std::thread thread_;
+};
+
 }  // namespace
 
 DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildConfig config)
-    : db_(db), config_(std::move(config)) {
+    : DrapeDatabaseBuilder(std::move(config)) {
+  db_ = &db;
+}
+
+HangingDrapeDatabase& DrapeDatabaseBuilder::database() const {
+  if (!db_) throw InvalidInputError("build: this builder has no database (it only simulates hold points)");
+  return *db_;
+}
+
+DrapeDatabaseBuilder::DrapeDatabaseBuilder(DrapeBuildConfig config) : config_(std::move(config)) {
   const DrapeBuildConfig& c = config_;
+  claim_owner_ = c.claim_owner.empty() ? defaultClaimOwner() : c.claim_owner;
+  if (claim_owner_.size() > 200) throw InvalidInputError("build: claim owner longer than 200 characters");
+  if (!(c.claim_lease_s >= 3 && c.claim_lease_s <= 1e6))
+    throw InvalidInputError("build: claim lease must be in [3, 1e6] s (shorter leases run out while a loaded machine renews them)");
   std::string err;
   if (c.textile.name.empty()) throw InvalidInputError("build: textile has no name");
   if (!validateTextileOutline(c.textile, &err)) throw InvalidInputError("build: textile '" + c.textile.name + "': " + err);
@@ -322,6 +418,37 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildC
     }
 }
 
+bool DrapeDatabaseBuilder::claimRow(std::int64_t id) {
+  HangingDrapeDatabase& db = database();
+  if (db.claimSimulation(id, claim_owner_, config_.claim_lease_s)) return true;
+  // Held by a builder of this machine that died (a crash, SIGKILL): take the row over at once.
+  const HangingDrapeDatabase::ClaimState s = db.claimState(id);
+  return s.status == SimulationStatus::kPending && ownerIsDeadHere(s.claimed_by) &&
+         db.claimSimulation(id, claim_owner_, config_.claim_lease_s, s.claimed_by);
+}
+
+SimulationOutcome DrapeDatabaseBuilder::simulateHoldPoint(int corner, std::size_t plan_index,
+                                                         std::int64_t simulation_id) const {
+  if (corner < -1 || corner > 3 || (corner >= 0) != config_.bracket_hold_points)
+    throw InvalidInputError("simulateHoldPoint: pass " + std::to_string(corner) + " is not a pass of this build");
+  const std::vector<PlannedHoldPoint> plan = corner < 0 ? plan_ : passPlan(corner);
+  if (plan_index >= plan.size())
+    throw InvalidInputError("simulateHoldPoint: hold point " + std::to_string(plan_index) + " of a plan of " +
+                            std::to_string(plan.size()));
+  std::call_once(mesh_once_, [this] { mesh_ = std::make_shared<internal::BuildMesh>(internal::buildMesh(config_, symmetry_, symmetric_grid_)); });
+  const std::vector<std::int64_t> no_ids;  // only mirror derivation reads the pass's ids
+  const internal::PassContext ctx{config_, corner, grid_, plan, no_ids, *mesh_, config_.views.angles(),
+                                  config_.projection.type == vision::ProjectionType::kOrthographic ? "orthographic"
+                                                                                                  : "pinhole"};
+  internal::BuildJob job;
+  job.plan_index = plan_index;
+  job.id = simulation_id;
+  SimulationOutcome out;
+  out.result = internal::simulateRow(ctx, job, &out.failure);
+  out.result.simulation_id = simulation_id;
+  return out;
+}
+
 DrapeBuildReport DrapeDatabaseBuilder::build() {
   if (!config_.bracket_hold_points) return buildPass(-1, plan_);
   const auto t0 = Clock::now();
@@ -340,10 +467,10 @@ DrapeBuildReport DrapeDatabaseBuilder::build() {
 
 std::pair<std::int64_t, std::int64_t> DrapeDatabaseBuilder::targetTextile() {
   if (config_.staged_textile_id == 0) {
-    const std::int64_t id = db_.ensureTextile(config_.textile, config_.material);
-    return {id, db_.textile(id).generation};
+    const std::int64_t id = database().ensureTextile(config_.textile, config_.material);
+    return {id, database().textile(id).generation};
   }
-  const auto staged = db_.stagedGeneration(config_.staged_textile_id);
+  const auto staged = database().stagedGeneration(config_.staged_textile_id);
   if (!staged) throw NotFoundError("textile " + std::to_string(config_.staged_textile_id) + " has no staged generation");
   if (!(staged->material == config_.material))
     throw InvalidInputError("build: the material differs from the one of textile " +
@@ -373,10 +500,10 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   rep.symmetry = symmetry_.name();
   rep.symmetric_grid = symmetric_grid_;
   std::tie(rep.textile_id, rep.generation) = targetTextile();
-  if (c.retry_failed) db_.resetFailed(rep.textile_id);
+  if (c.retry_failed) database().resetFailed(rep.textile_id);
 
   const internal::PassPlan pp =
-      internal::planPass(db_, c, plan, rep.textile_id, rep.generation, parametersText(c, corner));
+      internal::planPass(database(), c, plan, rep.textile_id, rep.generation, parametersText(c, corner));
   rep.planned = pp.planned;
   rep.to_simulate = pp.to_simulate;
   rep.already_done = pp.already_done;
@@ -388,7 +515,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   // Automatic parallelism: one worker per core (no more than there are jobs), and the cores a short
   // job list leaves idle go to the simulations' OpenMP threads: never more threads than cores.
   const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  int workers = c.workers > 0 ? c.workers : cores;
+  int workers = c.remote ? c.remote->slots() : c.workers > 0 ? c.workers : cores;
   workers = std::max(1, std::min(workers, static_cast<int>(jobs.size())));
   const int threads = c.threads_per_simulation > 0 ? c.threads_per_simulation : std::max(1, cores / workers);
   DrapeBuildPass pass = passInfo(corner, pp, workers);
@@ -397,26 +524,85 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
 
   std::mutex mu;  // the job queue, the report, the time estimate and the callbacks
   std::size_t next_job = 0;
+  std::deque<const internal::BuildJob*> waiting;  // claimed by another builder that is still alive
   const auto pass_start = std::chrono::steady_clock::now();
   const auto now_s = [&pass_start] { return secondsSince(pass_start); };
   BuildTimeEstimate estimate(workers, pass.to_run);
-  int completed = 0;  // simulations of this pass finished, done or failed
+  int completed = 0;  // simulations of this pass finished, done or failed, here or by another builder
   std::exception_ptr fatal;
   bool stop = false;
-  auto worker = [&]() {
+  // Under `mu`: one more simulation of the pass has finished.
+  const auto finishedOne = [&](std::int64_t id, bool estimated) {
+    ++completed;
+    const double t = now_s();
+    if (estimated) estimate.finished(id, t);
+    if (!c.on_progress) return;
+    DrapeBuildProgress progress;
+    progress.done = rep.already_done + completed;
+    progress.total = rep.to_simulate;
+    progress.done_before = rep.already_done;
+    progress.elapsed_s = t;
+    progress.eta_s = estimate.remainingSeconds(t);
+    c.on_progress(progress);
+  };
+  // The row a job claims: its simulation, or for a derive-only job its first mirror row.
+  const auto claimKey = [&pp](const internal::BuildJob& j) -> std::int64_t {
+    if (j.simulate) return j.id;
+    return j.derived.empty() ? 0 : pp.ids[j.derived.front()];
+  };
+  auto worker = [&](int slot) {
     omp_set_num_threads(threads);
+    const internal::RowSimulator simulate_row = [&, slot](const internal::BuildJob& j, std::string* failure) {
+      if (!c.remote) return internal::simulateRow(ctx, j, failure);
+      SimulationOutcome o = c.remote->simulate(slot, corner, j.plan_index, j.id);
+      *failure = o.failure;
+      return std::move(o.result);
+    };
     for (;;) {
       const internal::BuildJob* job = nullptr;
+      bool retry = false;
       {
         std::lock_guard<std::mutex> lock(mu);
-        if (stop || next_job >= jobs.size() || (c.should_stop && c.should_stop())) return;
-        job = &jobs[next_job++];
-        if (job->simulate) estimate.started(job->id, now_s());
+        if (stop || (c.should_stop && c.should_stop())) return;
+        if (next_job < jobs.size()) {
+          job = &jobs[next_job++];
+        } else if (!waiting.empty()) {
+          job = waiting.front();
+          waiting.pop_front();
+          retry = true;
+        } else {
+          return;
+        }
       }
       try {
-        const internal::JobOutcome out = internal::runJob(db_, ctx, *job);
+        // A job another builder holds is set aside and looked at again once the queue is empty: it ends
+        // there (done or failed), or its lease runs out and it is taken over here.
+        const std::int64_t key = claimKey(*job);
+        if (key != 0 && !claimRow(key)) {
+          const bool pending = database().claimState(key).status == SimulationStatus::kPending;
+          {
+            std::lock_guard<std::mutex> lock(mu);
+            if (pending) {
+              waiting.push_back(job);
+            } else {
+              ++rep.done_elsewhere;
+              if (job->simulate) finishedOne(job->id, false);
+            }
+          }
+          // Still running elsewhere and nothing else to do: wait a little before looking again.
+          if (retry && pending)
+            std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.2, c.claim_lease_s / 4)));
+          continue;
+        }
+        {
+          std::lock_guard<std::mutex> lock(mu);
+          if (job->simulate) estimate.started(job->id, now_s());
+        }
+        const internal::JobOutcome out = internal::runJob(database(), ctx, *job, simulate_row);
         std::lock_guard<std::mutex> lock(mu);
-        if (!out.failure.empty()) {
+        if (out.superseded) {
+          ++rep.done_elsewhere;
+        } else if (!out.failure.empty()) {
           ++rep.failed_now;
           const Vec2 p = plan[job->plan_index].position;
           char hold[96];
@@ -431,20 +617,7 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
             rep.simulation_seconds += out.wall_time_s;
           }
         }
-        if (job->simulate) {
-          ++completed;
-          const double t = now_s();
-          estimate.finished(job->id, t);
-          if (c.on_progress) {
-            DrapeBuildProgress progress;
-            progress.done = rep.already_done + completed;
-            progress.total = rep.to_simulate;
-            progress.done_before = rep.already_done;
-            progress.elapsed_s = t;
-            progress.eta_s = estimate.remainingSeconds(t);
-            c.on_progress(progress);
-          }
-        }
+        if (job->simulate) finishedOne(job->id, true);
       } catch (...) {
         std::lock_guard<std::mutex> lock(mu);
         if (!fatal) fatal = std::current_exception();
@@ -455,8 +628,9 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
   };
 
   if (!jobs.empty()) {
+    ClaimRenewal renewal(database(), claim_owner_, c.claim_lease_s);
     std::vector<std::thread> pool;
-    for (int w = 0; w < workers; ++w) pool.emplace_back(worker);
+    for (int w = 0; w < workers; ++w) pool.emplace_back(worker, w);
     for (auto& t : pool) t.join();
   }
   if (c.on_pass_end) c.on_pass_end(pass);

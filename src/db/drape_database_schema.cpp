@@ -13,14 +13,21 @@
 namespace textile_handling {
 namespace db {
 
-using internal::kNow;
+using internal::now;
 
 namespace {
 
-// The simulations table of schema version 2 under `name` (the v1 -> v2 migration builds it under another
-// name and renames it). `generation` tells which build of the textile a row belongs to: readers use the
-// textile's active generation only, so a rebuild can run beside the rows it replaces.
-std::string simulationsTableSql(const std::string& name) {
+// The simulations table under `name` (the v1 -> v2 migration builds it under another name and renames
+// it), with the claim columns of version 3 or without them (version 2). `generation` tells which build of
+// the textile a row belongs to: readers use the textile's active generation only, so a rebuild can run
+// beside the rows it replaces. `claimed_by` / `claim_expires_at` (seconds since 1970, the database's
+// clock) say which builder runs a pending row and until when; `claims` counts the claims ever made.
+constexpr const char* kClaimColumnsSql =
+    "  claimed_by            TEXT,\n"
+    "  claim_expires_at      REAL,\n"
+    "  claims                INTEGER NOT NULL DEFAULT 0,\n";
+
+std::string simulationsTableSql(const std::string& name, bool with_claims) {
   return "CREATE TABLE " + name + R"SQL( (
   id                    INTEGER PRIMARY KEY,
   textile_id            INTEGER NOT NULL REFERENCES textiles(id) ON DELETE CASCADE,
@@ -51,7 +58,7 @@ std::string simulationsTableSql(const std::string& name) {
   positions             BLOB,
   created_at            TEXT NOT NULL,
   finished_at           TEXT,
-  CHECK ((status = 'done') = (positions IS NOT NULL)),
+)SQL" + std::string(with_claims ? kClaimColumnsSql : "") + R"SQL(  CHECK ((status = 'done') = (positions IS NOT NULL)),
   CHECK ((source = 'identity') = (source_simulation_id IS NULL)),
   UNIQUE (textile_id, generation, parameters, hold_key)
 );
@@ -99,6 +106,7 @@ CREATE TABLE grasp_points (
   kind        TEXT NOT NULL CHECK (kind IN ('corner', 'grasp')),
   x           REAL NOT NULL,
   y           REAL NOT NULL,
+  ordinal     INTEGER NOT NULL DEFAULT 0,
   PRIMARY KEY (textile_id, name)
 );
 )SQL";
@@ -122,9 +130,9 @@ CREATE TABLE views (
 // v1 -> v2: textiles get their active generation, simulations a generation (the table is rebuilt: the
 // UNIQUE constraint gains the generation), and staged generations get their table. Every existing row
 // is generation 0, the active one. Runs with foreign keys off (SQLite's table-rebuild procedure).
-void migrateV1ToV2(SqliteConnection& conn) {
+void migrateV1ToV2(SqlConnection& conn) {
   conn.exec("ALTER TABLE textiles ADD COLUMN generation INTEGER NOT NULL DEFAULT 0");
-  conn.exec(simulationsTableSql("simulations_v2"));
+  conn.exec(simulationsTableSql("simulations_v2", false));
   const char* columns =
       "id, textile_id, hold_x, hold_y, hold_key, lattice_i, lattice_j, source, source_simulation_id, model, "
       "integrator, spacing, parameters, status, failure_reason, rest_reached, sim_time_s, wall_time_s, "
@@ -137,20 +145,31 @@ void migrateV1ToV2(SqliteConnection& conn) {
   conn.exec(kStagedGenerationsSql);
 }
 
-}  // namespace
-
-std::string schemaSql() {
-  return std::string(kTablesBeforeSimulations) + simulationsTableSql("simulations") + kSimulationsIndexSql + kViewsSql +
-         kStagedGenerationsSql;
+// v2 -> v3: grasp points keep their order in a column of their own (they were read in SQLite's rowid
+// order, which PostgreSQL does not have); simulations get the claim columns of concurrent builders.
+void migrateV2ToV3(SqlConnection& conn) {
+  conn.exec("ALTER TABLE grasp_points ADD COLUMN ordinal INTEGER NOT NULL DEFAULT 0");
+  conn.exec("UPDATE grasp_points SET ordinal = rowid");
+  conn.exec("ALTER TABLE simulations ADD COLUMN claimed_by TEXT");
+  conn.exec("ALTER TABLE simulations ADD COLUMN claim_expires_at REAL");
+  conn.exec("ALTER TABLE simulations ADD COLUMN claims INTEGER NOT NULL DEFAULT 0");
 }
 
-void migrateSchemaStep(SqliteConnection& conn, int from_version) {
+}  // namespace
+
+std::string schemaSql(SqlDialect dialect) {
+  return dialectDdl(std::string(kTablesBeforeSimulations) + simulationsTableSql("simulations", true) + kSimulationsIndexSql +
+                        kViewsSql + kStagedGenerationsSql,
+                    dialect);
+}
+
+void migrateSchemaStep(SqlConnection& conn, int from_version) {
   if (from_version == 0) {
     // v0 (the prototype layout) stored views without their foreground area; v1 keeps the area so
     // that statistics and loaders need not decode masks. Fill it from the mask blobs.
     conn.exec("ALTER TABLE views ADD COLUMN area INTEGER NOT NULL DEFAULT 0");
-    SqliteStatement sel = conn.prepare("SELECT id, mask FROM views");
-    SqliteStatement upd = conn.prepare("UPDATE views SET area = ? WHERE id = ?");
+    SqlStatement sel = conn.prepare("SELECT id, mask FROM views");
+    SqlStatement upd = conn.prepare("UPDATE views SET area = ? WHERE id = ?");
     while (sel.step()) {
       const std::int64_t id = sel.getInt(0);
       const vision::BitMask m =
@@ -165,6 +184,10 @@ void migrateSchemaStep(SqliteConnection& conn, int from_version) {
     migrateV1ToV2(conn);
     return;
   }
+  if (from_version == 2) {
+    migrateV2ToV3(conn);
+    return;
+  }
   throw SchemaVersionError("no migration from schema version " + std::to_string(from_version));
 }
 
@@ -172,23 +195,34 @@ void migrateSchemaStep(SqliteConnection& conn, int from_version) {
 
 namespace {
 
-// What an opened file is, read without writing anything.
+// What an opened database is, read without writing anything.
 struct FileState {
-  std::int64_t objects = 0;   // schema objects other than SQLite's own
+  std::int64_t objects = 0;   // schema objects other than the backend's own
   std::int64_t version = -1;  // schema_version.version (objects > 0)
 };
 
-// Reads the file's state and refuses files that are not (or not yet) drape databases this program can
-// use. Only reads: a refused file is left byte for byte as it was.
-FileState inspectFile(const SqliteConnection& conn, const std::string& path, int supported) {
+std::int64_t countTables(SqlConnection& conn, const std::string& only_name = "") {
+  const std::string name_clause = only_name.empty() ? "" : " AND table_name = '" + only_name + "'";
+  if (conn.dialect() == SqlDialect::kPostgres)
+    return conn.queryInt("SELECT count(*) FROM information_schema.tables WHERE table_schema = current_schema()" +
+                         name_clause);
+  if (only_name.empty()) return conn.queryInt("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");
+  return conn.queryInt("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = '" + only_name + "'");
+}
+
+// Reads the database's state and refuses databases that are not (or not yet) drape databases this program
+// can use. Only reads: a refused file or server database is left as it was.
+FileState inspectFile(SqlConnection& conn, const std::string& path, int supported) {
   FileState f;
-  f.objects = conn.queryInt("SELECT count(*) FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'");  // also checks "not a database"
-  const std::int64_t app_id = conn.queryInt("PRAGMA application_id");
-  if (app_id != 0 && app_id != HangingDrapeDatabase::kApplicationId)
-    throw SchemaVersionError("'" + path + "' is an SQLite file of another application (application_id " +
-                             std::to_string(app_id) + "), not a drape database");
+  f.objects = countTables(conn);  // SQLite: also checks "not a database"
+  if (conn.dialect() == SqlDialect::kSqlite) {
+    const std::int64_t app_id = conn.queryInt("PRAGMA application_id");
+    if (app_id != 0 && app_id != HangingDrapeDatabase::kApplicationId)
+      throw SchemaVersionError("'" + path + "' is an SQLite file of another application (application_id " +
+                               std::to_string(app_id) + "), not a drape database");
+  }
   if (f.objects == 0) return f;
-  if (conn.queryInt("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'") == 0)
+  if (countTables(conn, "schema_version") == 0)
     throw SchemaVersionError("'" + path + "' has no schema_version table: not a drape database");
   if (conn.queryInt("SELECT count(*) FROM schema_version") != 1)
     throw SchemaVersionError("'" + path + "' has a damaged schema_version table (expected exactly one row)");
@@ -206,12 +240,16 @@ FileState inspectFile(const SqliteConnection& conn, const std::string& path, int
 void HangingDrapeDatabase::initialiseSchema() {
   // 1. Look before writing: foreign, damaged and newer files are refused untouched (switching the
   //    journal to WAL already rewrites the file header, so it must not happen before this check).
-  FileState f = inspectFile(conn_, path_, kSchemaVersion);
+  FileState f = inspectFile(*conn_, path_, kSchemaVersion);
   if (read_only_) {
     if (f.objects == 0) throw SchemaVersionError("'" + path_ + "' is empty, not a drape database");
     if (f.version != kSchemaVersion)
       throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(f.version) +
                                " and needs a migration to " + std::to_string(kSchemaVersion) + "; open it read-write");
+    return;
+  }
+  if (conn_->dialect() == SqlDialect::kPostgres) {
+    initialisePostgresSchema(f.objects, f.version);
     return;
   }
   // 2. A drape database (or an empty file) opened for writing: WAL, so that readers never block the
@@ -223,7 +261,7 @@ void HangingDrapeDatabase::initialiseSchema() {
   std::string mode;
   for (const auto start = std::chrono::steady_clock::now();;) {
     try {
-      mode = conn_.queryText("PRAGMA journal_mode = WAL");
+      mode = conn_->queryText("PRAGMA journal_mode = WAL");
       break;
     } catch (const SqliteError& e) {
       const int primary = e.code() & 0xff;
@@ -235,41 +273,41 @@ void HangingDrapeDatabase::initialiseSchema() {
     }
   }
   if (mode != "wal") throw SqliteError("cannot switch '" + path_ + "' to WAL mode (got '" + mode + "')", SQLITE_ERROR);
-  conn_.exec("PRAGMA synchronous = NORMAL");
+  conn_->exec("PRAGMA synchronous = NORMAL");
   if (f.objects > 0 && f.version == kSchemaVersion) return;
   // 3. Create or migrate under the write lock. Another process may have created or migrated the file
   //    between the look above and the lock, so look again inside the transaction.
   // Migrations rebuild tables that others reference (v1 -> v2 rebuilds `simulations`), which SQLite
   // allows only with foreign keys off; the pragma is a no-op inside a transaction, so it is switched
   // here and back on below, and foreign_key_check runs before the commit.
-  conn_.exec("PRAGMA foreign_keys = OFF");
+  conn_->exec("PRAGMA foreign_keys = OFF");
   struct ForeignKeysBackOn {
-    SqliteConnection& c;
+    SqlConnection& c;
     ~ForeignKeysBackOn() {
       try {
         c.exec("PRAGMA foreign_keys = ON");
       } catch (...) {
       }
     }
-  } keys_on{conn_};
+  } keys_on{*conn_};
   try {
-    SqliteTransaction tx(conn_);
-    f = inspectFile(conn_, path_, kSchemaVersion);
+    SqlTransaction tx(*conn_);
+    f = inspectFile(*conn_, path_, kSchemaVersion);
     if (f.objects == 0) {
-      conn_.exec(schemaSql());
-      conn_.exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
-                 kNow + ")");
-      conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
+      conn_->exec(schemaSql());
+      conn_->exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
+                  now(*conn_) + ")");
+      conn_->exec("PRAGMA application_id = " + std::to_string(kApplicationId));
       tx.commit();
       return;
     }
     for (int v = static_cast<int>(f.version); v < kSchemaVersion; ++v) {
-      migrateSchemaStep(conn_, v);
-      conn_.exec("UPDATE schema_version SET version = " + std::to_string(v + 1) + ", written_at = " + kNow);
+      migrateSchemaStep(*conn_, v);
+      conn_->exec("UPDATE schema_version SET version = " + std::to_string(v + 1) + ", written_at = " + now(*conn_));
     }
-    if (conn_.queryInt("SELECT count(*) FROM pragma_foreign_key_check") != 0)
+    if (conn_->queryInt("SELECT count(*) FROM pragma_foreign_key_check") != 0)
       throw SchemaVersionError("foreign key violations after the migration");
-    conn_.exec("PRAGMA application_id = " + std::to_string(kApplicationId));
+    conn_->exec("PRAGMA application_id = " + std::to_string(kApplicationId));
     tx.commit();
   } catch (const SchemaVersionError&) {
     throw;
@@ -278,6 +316,30 @@ void HangingDrapeDatabase::initialiseSchema() {
     throw SchemaVersionError("migrating '" + path_ + "' from schema version " + std::to_string(f.version) + " to " +
                              std::to_string(kSchemaVersion) + " failed (file left unchanged): " + e.what());
   }
+}
+
+// A PostgreSQL database: created or migrated in one transaction (PostgreSQL's DDL is transactional) under
+// the writers' lock, so concurrent first opens create the tables once. PostgreSQL databases start at the
+// version that introduced the backend (3); migrations from it on run on both backends.
+void HangingDrapeDatabase::initialisePostgresSchema(std::int64_t objects, std::int64_t version) {
+  if (objects > 0 && version == kSchemaVersion) return;
+  SqlTransaction tx(*conn_);
+  const FileState f = inspectFile(*conn_, path_, kSchemaVersion);
+  if (f.objects == 0) {
+    conn_->exec(schemaSql(SqlDialect::kPostgres));
+    conn_->exec("INSERT INTO schema_version(version, written_at) VALUES (" + std::to_string(kSchemaVersion) + ", " +
+                now(*conn_) + ")");
+    tx.commit();
+    return;
+  }
+  if (f.version < 3)
+    throw SchemaVersionError("'" + path_ + "' has schema version " + std::to_string(f.version) +
+                             " on PostgreSQL, which never had it (PostgreSQL databases start at version 3)");
+  for (int v = static_cast<int>(f.version); v < kSchemaVersion; ++v) {
+    migrateSchemaStep(*conn_, v);
+    conn_->exec("UPDATE schema_version SET version = " + std::to_string(v + 1) + ", written_at = " + now(*conn_));
+  }
+  tx.commit();
 }
 
 }  // namespace db

@@ -87,7 +87,7 @@ const char* storedViewFilter() {
          "AND (?2 = 0 OR abs(s.spacing - ?3) <= 1e-9) AND (?4 = 1 OR s.source = 'identity')";
 }
 
-void bindFilter(SqliteStatement& st, const MatchIndexOptions& options) {
+void bindFilter(SqlStatement& st, const MatchIndexOptions& options) {
   st.bind(1, options.textile)
       .bind(2, options.spacing ? 1 : 0)
       .bind(3, options.spacing ? *options.spacing : 0.0)
@@ -97,8 +97,8 @@ void bindFilter(SqliteStatement& st, const MatchIndexOptions& options) {
 }  // namespace
 
 std::map<std::string, StoredViewCount> countStoredViews(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
-  return db.withConnection([&](SqliteConnection& conn) {
-    SqliteStatement st = conn.prepare(
+  return db.withConnection([&](SqlConnection& conn) {
+    SqlStatement st = conn.prepare(
         std::string("SELECT t.name, count(*), COALESCE(sum(s.view_count), 0) FROM simulations s JOIN textiles t ON "
                     "t.id = s.textile_id WHERE ") +
         storedViewFilter() + " GROUP BY t.name");
@@ -112,7 +112,7 @@ std::map<std::string, StoredViewCount> countStoredViews(const HangingDrapeDataba
 DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchIndexOptions& options) {
   const auto t0 = std::chrono::steady_clock::now();
   DrapeMatchIndex index;
-  db.withConnection([&](SqliteConnection& conn) {
+  db.withConnection([&](SqlConnection& conn) {
     const std::string sql =
         std::string(
             "SELECT v.id, v.view_angle_deg, v.projection, v.width_px, v.height_px, v.metres_per_pixel, "
@@ -120,7 +120,7 @@ DrapeMatchIndex loadDrapeMatchIndex(const HangingDrapeDatabase& db, const MatchI
             "t.symmetry, t.symmetry_cx, t.symmetry_cy FROM views v JOIN simulations s ON s.id = v.simulation_id "
             "JOIN textiles t ON t.id = s.textile_id WHERE ") +
         storedViewFilter() + " ORDER BY s.id, v.view_angle_deg";
-    SqliteStatement st = conn.prepare(sql);
+    SqlStatement st = conn.prepare(sql);
     bindFilter(st, options);
     std::int64_t last_sim = -1;
     std::size_t current = 0;

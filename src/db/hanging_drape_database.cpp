@@ -1,7 +1,6 @@
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/postgres_connection.h"
-
-#include <sqlite3.h>
+#include "textile_handling/db/database_change_watcher.h"
 
 #include <chrono>
 #include <cmath>
@@ -19,7 +18,7 @@ namespace db {
 
 using internal::fmt17;
 using internal::holdKey;
-using internal::kNow;
+using internal::now;
 
 namespace {
 
@@ -69,15 +68,12 @@ std::vector<Vec2> outlineFromText(const std::string& text) {
 
 HangingDrapeDatabase::HangingDrapeDatabase(const std::string& path, const DatabaseOpenOptions& options)
     : path_(path), read_only_(options.read_only), busy_timeout_ms_(options.busy_timeout_ms) {
-  // Without this, SQLite would create a file named after the URL.
-  if (isPostgresUrl(path))
-    throw InvalidInputError("database '" + redactedUrl(path) +
-                            "': the drape database stores its data in SQLite files; PostgreSQL URLs are not accepted");
-  int flags = options.read_only ? SqliteConnection::kReadOnly : SqliteConnection::kReadWrite;
-  if (!options.read_only && options.create) flags |= SqliteConnection::kCreate;
-  conn_ = SqliteConnection(path, flags);
-  sqlite3_busy_timeout(conn_.handle(), options.busy_timeout_ms);
-  conn_.exec("PRAGMA foreign_keys = ON");
+  SqlOpenOptions o;
+  o.read_only = options.read_only;
+  o.create = options.create;
+  o.busy_timeout_ms = options.busy_timeout_ms;
+  conn_ = openSqlConnection(path, o);
+  if (isPostgresUrl(path)) path_ = conn_->name();  // messages never show the password
   initialiseSchema();
 }
 
@@ -86,7 +82,7 @@ HangingDrapeDatabase::~HangingDrapeDatabase() = default;
 
 int HangingDrapeDatabase::schemaVersion() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return static_cast<int>(conn_.queryInt("SELECT version FROM schema_version"));
+  return static_cast<int>(conn_->queryInt("SELECT version FROM schema_version"));
 }
 
 void HangingDrapeDatabase::requireWritable(const char* what) const {
@@ -97,7 +93,7 @@ void HangingDrapeDatabase::requireWritable(const char* what) const {
 
 namespace {
 
-TextileRecord readTextileRow(SqliteStatement& st, const SqliteConnection& conn) {
+TextileRecord readTextileRow(SqlStatement& st, SqlConnection& conn) {
   TextileRecord r;
   r.id = st.getInt(0);
   r.outline.name = st.getText(1);
@@ -121,7 +117,7 @@ TextileRecord readTextileRow(SqliteStatement& st, const SqliteConnection& conn) 
   r.symmetry.cy = st.getDouble(9);
   r.created_at = st.getText(10);
   r.generation = st.getInt(11);
-  SqliteStatement gp = conn.prepare("SELECT name, kind, x, y FROM grasp_points WHERE textile_id = ? ORDER BY rowid");
+  SqlStatement gp = conn.prepare("SELECT name, kind, x, y FROM grasp_points WHERE textile_id = ? ORDER BY ordinal");
   gp.bind(1, r.id);
   while (gp.step()) {
     NamedPoint p;
@@ -164,12 +160,12 @@ void validateTextileInput(const TextileOutline& outline, const Material& materia
 }
 
 // Inserts a validated textile; the caller holds the lock and an open write transaction.
-std::int64_t insertTextile(SqliteConnection& conn, const TextileOutline& outline, const Material& material) {
+std::int64_t insertTextile(SqlConnection& conn, const TextileOutline& outline, const Material& material) {
   const TextileSymmetry sym = detectSymmetry(outline);
-  SqliteStatement ins = conn.prepare(
+  SqlStatement ins = conn.prepare(
       std::string("INSERT INTO textiles(name, outline, mirrored, mirror_x, material_name, material_yaml, symmetry, "
                   "symmetry_cx, symmetry_cy, created_at) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ") +
-      kNow + ")");
+      now(conn) + ") RETURNING id");
   ins.bind(1, outline.name)
       .bind(2, outlineToText(outline.outline))
       .bind(3, outline.mirrored ? 1 : 0)
@@ -179,19 +175,23 @@ std::int64_t insertTextile(SqliteConnection& conn, const TextileOutline& outline
       .bind(7, sym.name())
       .bind(8, sym.cx)
       .bind(9, sym.cy);
+  if (!ins.step()) throw DrapeDatabaseError("inserting textile '" + outline.name + "' returned no id");
+  const std::int64_t id = ins.getInt(0);
   ins.run();
-  const std::int64_t id = conn.lastInsertRowId();
-  SqliteStatement gp = conn.prepare("INSERT INTO grasp_points(textile_id, name, kind, x, y) VALUES (?, ?, ?, ?, ?)");
-  for (const NamedPoint& p : outline.named_points) {
+  SqlStatement gp =
+      conn.prepare("INSERT INTO grasp_points(textile_id, name, kind, x, y, ordinal) VALUES (?, ?, ?, ?, ?, ?)");
+  for (std::size_t k = 0; k < outline.named_points.size(); ++k) {
+    const NamedPoint& p = outline.named_points[k];
     gp.bind(1, id).bind(2, p.name).bind(3, p.kind).bind(4, p.position.x()).bind(5, p.position.y());
+    gp.bind(6, static_cast<std::int64_t>(k));
     gp.run();
     gp.reset();
   }
   return id;
 }
 
-std::optional<TextileRecord> findTextileByName(const SqliteConnection& conn, const std::string& name) {
-  SqliteStatement st = conn.prepare(std::string(kTextileColumns) + " WHERE name = ?");
+std::optional<TextileRecord> findTextileByName(SqlConnection& conn, const std::string& name) {
+  SqlStatement st = conn.prepare(std::string(kTextileColumns) + " WHERE name = ?");
   st.bind(1, name);
   if (!st.step()) return std::nullopt;
   return readTextileRow(st, conn);
@@ -205,14 +205,14 @@ std::int64_t HangingDrapeDatabase::addTextile(const TextileOutline& outline, con
   std::lock_guard<std::mutex> lock(mutex_);
   // The name check and the insert are one write transaction, so a concurrent writer cannot slip in
   // between (which used to surface as a raw UNIQUE-constraint SqliteError).
-  SqliteTransaction tx(conn_);
+  SqlTransaction tx(*conn_);
   {
-    SqliteStatement st = conn_.prepare("SELECT count(*) FROM textiles WHERE name = ?");
+    SqlStatement st = conn_->prepare("SELECT count(*) FROM textiles WHERE name = ?");
     st.bind(1, outline.name);
     st.step();
     if (st.getInt(0) > 0) throw InvalidInputError("a textile named '" + outline.name + "' is already stored");
   }
-  const std::int64_t id = insertTextile(conn_, outline, material);
+  const std::int64_t id = insertTextile(*conn_, outline, material);
   tx.commit();
   return id;
 }
@@ -223,37 +223,37 @@ std::int64_t HangingDrapeDatabase::ensureTextile(const TextileOutline& outline, 
   std::lock_guard<std::mutex> lock(mutex_);
   // Look-up and insert in one write transaction: two builders of the same textile started at once
   // (separate processes) both get the one row instead of one of them failing.
-  SqliteTransaction tx(conn_);
-  if (const auto existing = findTextileByName(conn_, outline.name)) {
+  SqlTransaction tx(*conn_);
+  if (const auto existing = findTextileByName(*conn_, outline.name)) {
     if (!sameTextile(*existing, outline, material))
       throw InvalidInputError("textile '" + outline.name +
                               "' is already stored with a different outline, grasp points or material; store this "
                               "variant under another name");
     return existing->id;  // nothing written: the transaction rolls back
   }
-  const std::int64_t id = insertTextile(conn_, outline, material);
+  const std::int64_t id = insertTextile(*conn_, outline, material);
   tx.commit();
   return id;
 }
 
 TextileRecord HangingDrapeDatabase::textile(std::int64_t id) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare(std::string(kTextileColumns) + " WHERE id = ?");
+  SqlStatement st = conn_->prepare(std::string(kTextileColumns) + " WHERE id = ?");
   st.bind(1, id);
   if (!st.step()) throw NotFoundError("no textile with id " + std::to_string(id));
-  return readTextileRow(st, conn_);
+  return readTextileRow(st, *conn_);
 }
 
 std::optional<TextileRecord> HangingDrapeDatabase::findTextile(const std::string& name) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return findTextileByName(conn_, name);
+  return findTextileByName(*conn_, name);
 }
 
 std::vector<TextileRecord> HangingDrapeDatabase::textiles() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare(std::string(kTextileColumns) + " ORDER BY id");
+  SqlStatement st = conn_->prepare(std::string(kTextileColumns) + " ORDER BY id");
   std::vector<TextileRecord> out;
-  while (st.step()) out.push_back(readTextileRow(st, conn_));
+  while (st.step()) out.push_back(readTextileRow(st, *conn_));
   return out;
 }
 
@@ -268,7 +268,7 @@ constexpr const char* kSimulationColumns =
     "FROM simulations s JOIN textiles t ON t.id = s.textile_id";
 }  // namespace
 
-SimulationRecord HangingDrapeDatabase::readSimulation(SqliteStatement& st) const {
+SimulationRecord HangingDrapeDatabase::readSimulation(SqlStatement& st) const {
   SimulationRecord r;
   r.id = st.getInt(0);
   r.textile_id = st.getInt(1);
@@ -314,7 +314,7 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
     const NewSimulation& r = rows[k];
     const std::string what = "simulation " + std::to_string(k) + ": ";
     if (!outlines.count(r.textile_id)) {
-      SqliteStatement st = conn_.prepare("SELECT outline, mirrored, mirror_x FROM textiles WHERE id = ?");
+      SqlStatement st = conn_->prepare("SELECT outline, mirrored, mirror_x FROM textiles WHERE id = ?");
       st.bind(1, r.textile_id);
       if (!st.step()) throw NotFoundError(what + "no textile with id " + std::to_string(r.textile_id));
       TextileOutline t;
@@ -340,7 +340,7 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
         if (rows[static_cast<std::size_t>(r.source_index)].textile_id != r.textile_id)
           throw InvalidInputError(what + "derived row and its source belong to different textiles");
       } else {
-        SqliteStatement st = conn_.prepare("SELECT textile_id, source, generation FROM simulations WHERE id = ?");
+        SqlStatement st = conn_->prepare("SELECT textile_id, source, generation FROM simulations WHERE id = ?");
         st.bind(1, r.source_simulation_id);
         if (!st.step()) throw NotFoundError(what + "no source simulation with id " + std::to_string(r.source_simulation_id));
         if (st.getInt(0) != r.textile_id || st.getText(1) != "identity" || st.getInt(2) != r.generation)
@@ -348,11 +348,11 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
       }
     }
   }
-  SqliteTransaction tx(conn_);
+  SqlTransaction tx(*conn_);
   // Rows go into the textile's active generation or its staged one; checked under the write lock, so a
   // promotion cannot slip in between.
   {
-    SqliteStatement gen = conn_.prepare(
+    SqlStatement gen = conn_->prepare(
         "SELECT t.generation, g.generation FROM textiles t LEFT JOIN staged_generations g ON g.textile_id = t.id "
         "WHERE t.id = ?");
     std::set<std::pair<std::int64_t, std::int64_t>> checked;
@@ -366,14 +366,14 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
       gen.reset();
     }
   }
-  SqliteStatement ins = conn_.prepare(
+  SqlStatement ins = conn_->prepare(
       std::string("INSERT INTO simulations(textile_id, hold_x, hold_y, hold_key, lattice_i, lattice_j, source, "
                   "source_simulation_id, model, integrator, spacing, parameters, generation, created_at) "
                   "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ") +
-      kNow +
+      now(*conn_) +
       ") ON CONFLICT (textile_id, generation, parameters, hold_key) DO UPDATE SET lattice_i = excluded.lattice_i, "
       "lattice_j = excluded.lattice_j");
-  SqliteStatement sel = conn_.prepare(
+  SqlStatement sel = conn_->prepare(
       "SELECT id FROM simulations WHERE textile_id = ? AND parameters = ? AND hold_key = ? AND generation = ?");
   std::vector<std::int64_t> ids;
   for (const NewSimulation& r : rows) {
@@ -388,7 +388,7 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
     ins.run();
     ins.reset();
     sel.bind(1, r.textile_id).bind(2, r.parameters).bind(3, key).bind(4, r.generation);
-    if (!sel.step()) throw SqliteError("planned simulation row vanished", SQLITE_INTERNAL);
+    if (!sel.step()) throw DrapeDatabaseError("planned simulation row vanished");
     ids.push_back(sel.getInt(0));
     sel.reset();
   }
@@ -398,7 +398,7 @@ std::vector<std::int64_t> HangingDrapeDatabase::addSimulations(const std::vector
 
 SimulationRecord HangingDrapeDatabase::simulation(std::int64_t id) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare(std::string(kSimulationColumns) + " WHERE s.id = ?");
+  SqlStatement st = conn_->prepare(std::string(kSimulationColumns) + " WHERE s.id = ?");
   st.bind(1, id);
   if (!st.step()) throw NotFoundError("no simulation with id " + std::to_string(id));
   return readSimulation(st);
@@ -410,7 +410,7 @@ std::vector<SimulationRecord> HangingDrapeDatabase::simulations(std::int64_t tex
   std::string sql = std::string(kSimulationColumns) + " WHERE (?1 = 0 OR s.textile_id = ?1)";
   if (status) sql += " AND s.status = ?2";
   sql += " ORDER BY s.id";
-  SqliteStatement st = conn_.prepare(sql);
+  SqlStatement st = conn_->prepare(sql);
   st.bind(1, textile_id);
   if (status) st.bind(2, toString(*status));
   std::vector<SimulationRecord> out;
@@ -418,7 +418,7 @@ std::vector<SimulationRecord> HangingDrapeDatabase::simulations(std::int64_t tex
   return out;
 }
 
-void HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& results) {
+std::size_t HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& results, bool skip_done) {
   requireWritable("storeResults");
   // Validate and encode before touching the database.
   struct Encoded {
@@ -459,22 +459,28 @@ void HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& res
     }
   }
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteTransaction tx(conn_);
-  SqliteStatement status = conn_.prepare(
+  SqlTransaction tx(*conn_);
+  SqlStatement status = conn_->prepare(
       "SELECT s.status, s.source, s.source_simulation_id, src.status FROM simulations s "
       "LEFT JOIN simulations src ON src.id = s.source_simulation_id WHERE s.id = ?");
-  SqliteStatement upd = conn_.prepare(
+  SqlStatement upd = conn_->prepare(
       std::string("UPDATE simulations SET status = 'done', failure_reason = NULL, positions = ?, rest_reached = ?, "
                   "sim_time_s = ?, wall_time_s = ?, render_time_s = ?, hanging_depth_m = ?, steps = ?, "
-                  "rejected_steps = ?, particles = ?, held_particle = ?, view_count = ?, finished_at = ") +
-      kNow + " WHERE id = ?");
-  SqliteStatement ins = conn_.prepare(
+                  "rejected_steps = ?, particles = ?, held_particle = ?, view_count = ?, claimed_by = NULL, "
+                  "claim_expires_at = NULL, finished_at = ") +
+      now(*conn_) + " WHERE id = ?");
+  SqlStatement ins = conn_->prepare(
       "INSERT INTO views(simulation_id, view_angle_deg, projection, width_px, height_px, metres_per_pixel, "
       "top_margin_px, area, mask) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)");
+  std::size_t stored = 0;
   for (std::size_t k = 0; k < results.size(); ++k) {
     const SimulationResult& r = results[k];
     status.bind(1, r.simulation_id);
     if (!status.step()) throw NotFoundError("no simulation with id " + std::to_string(r.simulation_id));
+    if (status.getText(0) == "done" && skip_done) {
+      status.reset();
+      continue;
+    }
     if (status.getText(0) == "done")
       throw InvalidInputError("simulation " + std::to_string(r.simulation_id) + " is already done");
     // A mirror-derived row holds its source's shape: it may only become done with or after its source
@@ -514,43 +520,56 @@ void HangingDrapeDatabase::storeResults(const std::vector<SimulationResult>& res
         .bind(12, r.simulation_id);
     upd.run();
     upd.reset();
+    ++stored;
   }
+  if (stored > 0) notifyReaders();
   tx.commit();
+  return stored;
 }
 
-void HangingDrapeDatabase::markFailed(std::int64_t id, const std::string& reason) {
+void HangingDrapeDatabase::notifyReaders() {
+  // Delivered when the caller's transaction commits, never if it rolls back (database_change_watcher.h).
+  if (conn_->dialect() != SqlDialect::kPostgres) return;  // SQLite readers poll data_version
+  SqlStatement st = conn_->prepare("SELECT pg_notify(?, '')");
+  st.bind(1, std::string(kDrapeDatabaseChannel));
+  st.run();
+}
+
+bool HangingDrapeDatabase::markFailed(std::int64_t id, const std::string& reason, bool skip_done) {
   requireWritable("markFailed");
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteTransaction tx(conn_);
-  SqliteStatement st = conn_.prepare("SELECT status FROM simulations WHERE id = ?");
+  SqlTransaction tx(*conn_);
+  SqlStatement st = conn_->prepare("SELECT status FROM simulations WHERE id = ?");
   st.bind(1, id);
   if (!st.step()) throw NotFoundError("no simulation with id " + std::to_string(id));
+  if (st.getText(0) == "done" && skip_done) return false;
   if (st.getText(0) == "done") throw InvalidInputError("simulation " + std::to_string(id) + " is done; cannot mark it failed");
-  SqliteStatement upd = conn_.prepare(std::string("UPDATE simulations SET status = 'failed', failure_reason = ?, "
-                                                  "finished_at = ") +
-                                      kNow + " WHERE id = ?");
+  SqlStatement upd = conn_->prepare(std::string("UPDATE simulations SET status = 'failed', failure_reason = ?, "
+                                                  "claimed_by = NULL, claim_expires_at = NULL, finished_at = ") +
+                                      now(*conn_) + " WHERE id = ?");
   upd.bind(1, reason.empty() ? std::string("unknown failure") : reason).bind(2, id);
   upd.run();
   tx.commit();
+  return true;
 }
 
 int HangingDrapeDatabase::resetFailed(std::int64_t textile_id) {
   requireWritable("resetFailed");
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteTransaction tx(conn_);
-  SqliteStatement st = conn_.prepare(
+  SqlTransaction tx(*conn_);
+  SqlStatement st = conn_->prepare(
       "UPDATE simulations SET status = 'pending', failure_reason = NULL, finished_at = NULL "
       "WHERE status = 'failed' AND (?1 = 0 OR textile_id = ?1)");
   st.bind(1, textile_id);
   st.run();
-  const int n = conn_.changes();
+  const int n = conn_->changes();
   tx.commit();
   return n;
 }
 
 VecX HangingDrapeDatabase::positions(std::int64_t simulation_id) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare("SELECT status, positions, particles FROM simulations WHERE id = ?");
+  SqlStatement st = conn_->prepare("SELECT status, positions, particles FROM simulations WHERE id = ?");
   st.bind(1, simulation_id);
   if (!st.step()) throw NotFoundError("no simulation with id " + std::to_string(simulation_id));
   if (st.getText(0) != "done" || st.isNull(1))
@@ -565,13 +584,13 @@ VecX HangingDrapeDatabase::positions(std::int64_t simulation_id) const {
 
 std::vector<StoredView> HangingDrapeDatabase::views(std::int64_t simulation_id) const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare(
+  SqlStatement st = conn_->prepare(
       "SELECT id, simulation_id, view_angle_deg, projection, width_px, height_px, metres_per_pixel, top_margin_px, "
       "area, mask FROM views WHERE simulation_id = ? ORDER BY view_angle_deg");
   st.bind(1, simulation_id);
   std::vector<StoredView> out;
   {
-    SqliteStatement exists = conn_.prepare("SELECT 1 FROM simulations WHERE id = ?");
+    SqlStatement exists = conn_->prepare("SELECT 1 FROM simulations WHERE id = ?");
     exists.bind(1, simulation_id);
     if (!exists.step()) throw NotFoundError("no simulation with id " + std::to_string(simulation_id));
   }
@@ -600,15 +619,15 @@ std::vector<StoredView> HangingDrapeDatabase::views(std::int64_t simulation_id) 
 DatabaseCounts HangingDrapeDatabase::counts(std::int64_t textile_id) const {
   std::lock_guard<std::mutex> lock(mutex_);
   DatabaseCounts c;
-  c.textiles = conn_.queryInt("SELECT count(*) FROM textiles");
+  c.textiles = conn_->queryInt("SELECT count(*) FROM textiles");
   // Active rows (what readers see) and staged rows separately.
-  SqliteStatement st = conn_.prepare(
-      "SELECT coalesce(sum(a), 0), coalesce(sum(a AND status = 'pending'), 0), coalesce(sum(a AND status = 'done'), 0), "
-      "coalesce(sum(a AND status = 'failed'), 0), coalesce(sum(a AND source != 'identity'), 0), "
-      "coalesce(sum(NOT a), 0), coalesce(sum(NOT a AND status = 'done'), 0), "
-      "coalesce(sum(NOT a AND status = 'failed'), 0) "
-      "FROM (SELECT s.status, s.source, s.generation = t.generation AS a FROM simulations s "
-      "JOIN textiles t ON t.id = s.textile_id WHERE ?1 = 0 OR s.textile_id = ?1)");
+  SqlStatement st = conn_->prepare(
+      std::string("SELECT ") + internal::countWhere("a") + ", " + internal::countWhere("a AND status = 'pending'") +
+      ", " + internal::countWhere("a AND status = 'done'") + ", " + internal::countWhere("a AND status = 'failed'") +
+      ", " + internal::countWhere("a AND source != 'identity'") + ", " + internal::countWhere("NOT a") + ", " +
+      internal::countWhere("NOT a AND status = 'done'") + ", " + internal::countWhere("NOT a AND status = 'failed'") +
+      " FROM (SELECT s.status, s.source, s.generation = t.generation AS a FROM simulations s "
+      "JOIN textiles t ON t.id = s.textile_id WHERE ?1 = 0 OR s.textile_id = ?1) AS rows_of_textile");
   st.bind(1, textile_id);
   st.step();
   c.simulations = st.getInt(0);
@@ -619,7 +638,7 @@ DatabaseCounts HangingDrapeDatabase::counts(std::int64_t textile_id) const {
   c.staged_simulations = st.getInt(5);
   c.staged_done = st.getInt(6);
   c.staged_failed = st.getInt(7);
-  SqliteStatement vs = conn_.prepare(
+  SqlStatement vs = conn_->prepare(
       "SELECT count(*) FROM views v JOIN simulations s ON s.id = v.simulation_id JOIN textiles t ON t.id = s.textile_id "
       "WHERE (?1 = 0 OR s.textile_id = ?1) AND s.generation = t.generation");
   vs.bind(1, textile_id);
@@ -632,7 +651,7 @@ std::vector<std::string> HangingDrapeDatabase::consistencyProblems() const {
   std::lock_guard<std::mutex> lock(mutex_);
   std::vector<std::string> out;
   auto collect = [&](const std::string& sql, const std::string& what, const char* id_of = "simulation") {
-    SqliteStatement st = conn_.prepare(sql);
+    SqlStatement st = conn_->prepare(sql);
     while (st.step()) out.push_back(what + " (" + id_of + " " + std::to_string(st.getInt(0)) + ")");
   };
   collect(
@@ -666,14 +685,19 @@ std::vector<std::string> HangingDrapeDatabase::consistencyProblems() const {
       "SELECT g.textile_id FROM staged_generations g JOIN textiles t ON t.id = g.textile_id "
       "WHERE g.generation <= t.generation",
       "staged generation not above the active one", "textile");
-  SqliteStatement fk = conn_.prepare("PRAGMA foreign_key_check");
-  while (fk.step()) out.push_back("foreign key violation in table " + fk.getText(0));
+  // PostgreSQL enforces foreign keys on every statement; SQLite can be made to skip them (foreign_keys off).
+  if (conn_->dialect() == SqlDialect::kSqlite) {
+    SqlStatement fk = conn_->prepare("PRAGMA foreign_key_check");
+    while (fk.step()) out.push_back("foreign key violation in table " + fk.getText(0));
+  }
   return out;
 }
 
 std::string HangingDrapeDatabase::integrityCheck() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  SqliteStatement st = conn_.prepare("PRAGMA integrity_check");
+  // The server checks its own storage (page checksums, WAL); what a client can check is that it answers.
+  if (conn_->dialect() == SqlDialect::kPostgres) return conn_->queryInt("SELECT 1") == 1 ? "ok" : "no answer";
+  SqlStatement st = conn_->prepare("PRAGMA integrity_check");
   std::string out;
   while (st.step()) {
     if (!out.empty()) out += "; ";

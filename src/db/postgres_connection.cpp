@@ -168,6 +168,12 @@ PgConnection& PgConnection::operator=(PgConnection&& o) noexcept {
 
 bool PgConnection::isOk() const { return conn_ && PQstatus(conn_) == CONNECTION_OK; }
 
+bool PgConnection::reconnect() {
+  if (!conn_) return false;
+  PQreset(conn_);  // closes the old connection and opens a new one with the same parameters
+  return PQstatus(conn_) == CONNECTION_OK;
+}
+
 bool PgConnection::inTransaction() const {
   return conn_ && PQtransactionStatus(conn_) != PQTRANS_IDLE && PQtransactionStatus(conn_) != PQTRANS_UNKNOWN;
 }

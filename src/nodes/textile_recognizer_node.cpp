@@ -11,6 +11,7 @@
 
 #include "node_paths.h"
 #include "textile_handling/RecognitionResult.h"
+#include "textile_handling/db/database_change_watcher.h"
 #include "textile_handling/sim/timing.h"
 
 namespace textile_handling {
@@ -212,6 +213,11 @@ TextileRecognizerNode::TextileRecognizerNode(ros::NodeHandle& nh, ros::NodeHandl
   info_sub_ = nh.subscribe(image_transport::getCameraInfoTopic(image_sub_.getTopic()), 4,
                            &TextileRecognizerNode::infoCallback, this);
   if (use_depth_) depth_sub_ = nh.subscribe("depth", 2, &TextileRecognizerNode::depthCallback, this);
+  // Builders that publish no database_changed topic (other machines, a build farm, drape_db) are seen
+  // through the database itself: LISTEN/NOTIFY on PostgreSQL, the file's commit counter on SQLite.
+  bool watch_database = true;
+  pnh.param("watch_database", watch_database, watch_database);
+  if (watch_database) watcher_ = std::thread([this, db_path] { watchDatabase(db_path); });
   worker_ = std::thread([this] { workerLoop(); });
   ROS_INFO_NAMED("textile_recognizer", "ready: %zu silhouettes of %zu hold points, image topic %s%s",
                  recognizer_->silhouetteCount(), recognizer_->holdPointCount(), image_sub_.getTopic().c_str(),
@@ -225,6 +231,32 @@ TextileRecognizerNode::~TextileRecognizerNode() {
   }
   cv_.notify_all();
   if (worker_.joinable()) worker_.join();
+  if (watcher_.joinable()) watcher_.join();
+}
+
+void TextileRecognizerNode::watchDatabase(const std::string& db_path) {
+  std::unique_ptr<db::DatabaseChangeWatcher> watcher;
+  for (;;) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (stop_) return;
+    }
+    try {
+      // A lost server connection is replaced by a new watcher; the reload after it catches up on
+      // whatever changed meanwhile.
+      if (!watcher) {
+        watcher = std::make_unique<db::DatabaseChangeWatcher>(db_path);
+        reload_requested_ = true;
+      }
+      if (watcher->waitForChange(500)) reload_requested_ = true;
+    } catch (const std::exception& e) {
+      watcher.reset();
+      ROS_WARN_THROTTLE_NAMED(30.0, "textile_recognizer", "cannot watch the database for changes (retrying): %s",
+                              e.what());
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait_for(lock, std::chrono::seconds(2), [this] { return stop_; });
+    }
+  }
 }
 
 void TextileRecognizerNode::depthCallback(const sensor_msgs::ImageConstPtr& depth) {

@@ -45,6 +45,8 @@ class TextileRecognizerNode {
   sensor_msgs::CameraInfoConstPtr matchingInfo(const ros::Time& stamp) const;  // mutex_ held
   void depthCallback(const sensor_msgs::ImageConstPtr& depth);
   void databaseChanged(const DatabaseChanged::ConstPtr& msg);
+  /// Until stop_: waits for database changes (DatabaseChangeWatcher) and requests reloads.
+  void watchDatabase(const std::string& db_path);
   void workerLoop();
   void process(const Frame& frame);
   void publishFailure(const std_msgs::Header& header, const std::string& code, const std::string& why);
@@ -98,6 +100,7 @@ class TextileRecognizerNode {
   std::atomic<bool> busy_{false}, reload_requested_{false};
   std::atomic<long> dropped_{0};
   std::thread worker_;
+  std::thread watcher_;  // watchDatabase(): sets reload_requested_ when the database changed
 };
 
 }  // namespace textile_handling

@@ -36,8 +36,8 @@ std::shared_ptr<const LoadedIndex> makeLoaded(db::DrapeMatchIndex&& index) {
 }
 
 std::vector<double> doneSpacings(const db::HangingDrapeDatabase& db, std::int64_t textile_id) {
-  return db.withConnection([&](db::SqliteConnection& c) {
-    db::SqliteStatement st =
+  return db.withConnection([&](db::SqlConnection& c) {
+    db::SqlStatement st =
         c.prepare("SELECT DISTINCT s.spacing FROM simulations s JOIN textiles t ON t.id = s.textile_id "
                   "WHERE s.textile_id = ?1 AND s.status = 'done' AND s.generation = t.generation ORDER BY s.spacing");
     st.bind(1, textile_id);
@@ -53,8 +53,8 @@ std::vector<double> doneSpacings(const db::HangingDrapeDatabase& db, std::int64_
 // simulations of those generations (count, id sum and maximum, latest finish time) and their views.
 // Rows of staged generations (a resimulation in progress) are invisible to readers and left out.
 std::string databaseFingerprint(const db::HangingDrapeDatabase& db) {
-  return db.withConnection([](db::SqliteConnection& c) {
-    db::SqliteStatement st = c.prepare(
+  return db.withConnection([](db::SqlConnection& c) {
+    db::SqlStatement st = c.prepare(
         "SELECT (SELECT count(*) FROM textiles), (SELECT COALESCE(max(id), 0) FROM textiles), "
         "(SELECT COALESCE(sum(generation), 0) FROM textiles), count(*), COALESCE(sum(s.id), 0), "
         "COALESCE(max(s.id), 0), COALESCE(max(s.finished_at), ''), COALESCE(sum(s.view_count), 0) "

@@ -1,4 +1,5 @@
 #include "textile_handling/registry/textile_registry.h"
+#include "textile_handling/db/postgres_connection.h"
 
 #include <algorithm>
 #include <chrono>
@@ -37,10 +38,12 @@ TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions opti
   if (path_.empty()) throw std::invalid_argument("TextileRegistry: empty database path");
   if (!(options_.build.lattice_spacing > 0) || !(options_.build.spacing > 0) || options_.max_hold_points < 1)
     throw std::invalid_argument("TextileRegistry: lattice spacing, particle spacing and max_hold_points must be positive");
-  const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
-  // 0755 whatever the process umask (a node started under umask 000 must not make world-writable
-  // directories).
-  if (!parent.empty()) createDirectories(parent.string(), 0755);
+  if (!db::isPostgresUrl(path_)) {  // a server URL names no local directory
+    const std::filesystem::path parent = std::filesystem::path(path_).parent_path();
+    // 0755 whatever the process umask (a node started under umask 000 must not make world-writable
+    // directories).
+    if (!parent.empty()) createDirectories(parent.string(), 0755);
+  }
   db_ = std::make_unique<db::HangingDrapeDatabase>(path_);
   worker_ = std::thread([this] { workerLoop(); });
 }

@@ -1,17 +1,19 @@
 // drape_db: builds, inspects, queries and exports the hanging-drape database, and runs the thesis's
 // recognition benchmark. See docs/database.md.
 //
-//   drape_db build  --db FILE --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
+//   drape_db build  --db DB --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
 //                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
 //                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N] [--question Q]]
-//   drape_db list   --db FILE [--simulations] [--textile NAME] [--check]
-//   drape_db query  --db FILE (--mask PNG | --image PNG) --hold-pixel U,V --metres-per-pixel M [--top K]
+//   drape_db list   --db DB [--simulations] [--textile NAME] [--check]
+//   drape_db query  --db DB (--mask PNG | --image PNG) --hold-pixel U,V --metres-per-pixel M [--top K]
 //                   [--second-mask PNG | --second-image PNG, --second-hold-pixel U,V, --second-metres-per-pixel M,
 //                    --relative-view DEG] [--canonical] [--textile NAME]
-//   drape_db export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]
+//   drape_db export --db DB --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]
 //   drape_db bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]
 //                   [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]
 //                   [--cg-tolerance R] [--cg-cold-start]
+//
+// DB is an SQLite file path or a postgresql:// URL (docs/database.md, "Storage backends").
 //
 // Exit status: 0 success, 1 unexpected error, 2 usage or bad input, 3 database error (cannot open, unknown
 // schema version, damaged data), 4 build finished but some simulations failed, 5 out of memory.
@@ -41,6 +43,7 @@
 #include "textile_handling/db/drape_match_evaluation.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/farm/mpi_build_farm.h"
 #include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/thread_limit.h"
 #include "textile_handling/vision/image_header.h"
@@ -75,8 +78,8 @@ struct UsageError : std::runtime_error {
 };
 
 const char* kUsage =
-    "usage: drape_db COMMAND [options]\n"
-    "  build  --db FILE --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
+    "usage: drape_db COMMAND [options]   (DB: an SQLite file or a postgresql://user@host:port/database URL)\n"
+    "  build  --db DB --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
     "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
     "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02]\n"
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4|backward_euler_newton]\n"
@@ -86,12 +89,12 @@ const char* kUsage =
     "         [--auto [--auto-spacings D,D,..] [--auto-tolerance M=0.03] [--auto-min-iou X=0.85]\n"
     "                 [--auto-samples N=3] [--question none|pull_out|sliding|tearing]]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
-    "  list   --db FILE [--simulations] [--textile NAME] [--check]\n"
-    "  query  --db FILE (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
+    "  list   --db DB [--simulations] [--textile NAME] [--check]\n"
+    "  query  --db DB (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
     "         [--second-mask PNG | --second-image PNG] [--second-hold-pixel U,V] [--second-metres-per-pixel M]\n"
     "         [--relative-view DEG] [--shift DX_M,DY_M]\n"
-    "  export --db FILE --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
+    "  export --db DB --simulation ID [--ply OUT.ply] [--obj OUT.obj] [--png-dir DIR]\n"
     "  bench  --out DIR [--quick] [--resume] [--threads N] [--pairs N] [--seed S] [--spacing D]\n"
     "         [--heldout-spacing D] [--frame PX@METRES] [--shift DX_M,DY_M | --thesis-shift] [--no-bracket]\n"
     "         [--cg-tolerance R] [--cg-cold-start]\n"
@@ -214,6 +217,7 @@ std::string fixed(double v, int p) {
 // ---- build ------------------------------------------------------------------------------------
 
 int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r);
+int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<DrapeMemberSpec>& members);
 
 // --auto: model, spacing, integrator and policy from the resolution search on a spread sample of the build's
 // hold points (automatic_configuration.h); the choice and its evidence are printed and go into the build's
@@ -271,7 +275,10 @@ int cmdBuild(const Args& a) {
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
                "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members",
-               "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question"});
+               "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question",
+               "--mpi", "--claim-lease"});
+  if (a.has("--mpi") && a.has("--auto"))
+    throw UsageError("--auto cannot run on a farm (--mpi): run it once without --mpi and pass its choice");
   if (a.has("--auto"))
     for (const char* fixed_by_auto : {"--spacing", "--model", "--integrator", "--policy"})
       if (a.has(fixed_by_auto))
@@ -391,6 +398,9 @@ int cmdBuild(const Args& a) {
 
   if (a.has("--auto")) chooseAutomatically(a, sym, c);
 
+  if (a.has("--claim-lease")) c.claim_lease_s = numberIn(a.get("--claim-lease"), 3, 1e6, "--claim-lease");
+  if (a.has("--mpi")) return buildOnFarm(a, c, members);
+
   tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
   if (!a.has("--quiet")) progress.attach(c);
   HangingDrapeDatabase db(a.require("--db"));
@@ -411,6 +421,52 @@ int cmdBuild(const Args& a) {
   return status;
 }
 
+// `build --mpi`: the same build on every rank of the MPI job (docs/build_farm.md). Rank 0 prints; a
+// fatal error on any rank ends the whole job.
+int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<DrapeMemberSpec>& members) {
+  farm::MpiSession session(nullptr, nullptr);
+  farm::FarmBuildInput in;
+  in.database = a.require("--db");
+  for (const DrapeMemberSpec& m : members) {
+    DrapeBuildConfig mc = memberBuildConfig(c, m);
+    // A rank runs one simulation at a time unless --threads says otherwise (PostgreSQL: every rank builds).
+    if (!a.has("--threads")) mc.workers = 1;
+    if (!a.has("--sim-threads")) mc.threads_per_simulation = 1;
+    in.members.push_back(mc);
+  }
+  tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
+  in.on_member_start = [&](std::size_t k, DrapeBuildConfig& mc) {
+    if (members.size() > 1 || members[k].name != "base")
+      std::cout << "member " << members[k].name << ": " << members[k].description << "\n";
+    if (!a.has("--quiet")) progress.attach(mc);
+  };
+  farm::FarmBuildResult r;
+  try {
+    r = farm::runFarmBuild(session, in);
+  } catch (const std::exception& e) {
+    std::cerr << "drape_db build (rank " << session.rank() << " of " << session.size() << "): " << e.what()
+              << "; ending the farm job (run the same command again to resume)\n";
+    std::cerr.flush();
+    session.abort(dynamic_cast<const DrapeDatabaseError*>(&e) && !dynamic_cast<const InvalidInputError*>(&e)
+                      ? kExitDatabase
+                      : kExitUsage);
+  }
+  if (session.rank() != 0) return kExitOk;
+  std::cout << "farm: " << r.ranks << " ranks, "
+            << (r.shared_database ? "every rank a builder of the shared PostgreSQL database"
+                                  : "rank 0 writes the SQLite file, every rank simulates")
+            << "\n";
+  HangingDrapeDatabase db(in.database, [] {
+    DatabaseOpenOptions o;
+    o.read_only = true;
+    return o;
+  }());
+  int status = kExitOk;
+  for (std::size_t k = 0; k < r.reports.size(); ++k)
+    if (printBuildReport(db, in.members[k], r.reports[k]) != kExitOk) status = kExitFailedSims;
+  return status;
+}
+
 // The summary of one build (one member) on stdout; kExitFailedSims if rows of these settings failed.
 int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r) {
   std::cout << "textile '" << c.textile.name << "' (id " << r.textile_id << "), symmetry " << r.symmetry
@@ -418,7 +474,8 @@ int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, 
             << "hold points: " << r.planned << " (" << r.to_simulate << " simulated, " << r.planned - r.to_simulate
             << " mirrored)\n"
             << "this build: " << r.simulated_now << " simulations done, " << r.failed_now << " failed, "
-            << r.derived_now << " mirrored entries derived, " << r.already_done << " were already done; "
+            << r.derived_now << " mirrored entries derived, " << r.already_done << " were already done"
+            << (r.done_elsewhere ? ", " + std::to_string(r.done_elsewhere) + " run by other builders" : std::string()) << "; "
             << fixed(r.wall_seconds, 1) << " s wall, " << fixed(r.simulation_seconds, 1) << " s simulation time\n";
   for (const auto& f : r.failures) std::cout << "failed: " << f << "\n";
   // Rows of this plan (these settings) that are failed, whether now or in an earlier build.
@@ -713,7 +770,7 @@ int main(int argc, char** argv) {
   try {
     if (cmd == "build")
       return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--auto", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
-                                             "--self-collision"}));
+                                             "--self-collision", "--mpi"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));

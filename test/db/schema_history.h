@@ -16,10 +16,18 @@ inline void replaceOnce(std::string* text, const std::string& what, const std::s
   text->replace(pos, what.size(), with);
 }
 
-/// Version 1: today's layout without generations (textiles.generation, simulations.generation in the
+/// Version 2: today's layout without grasp_points.ordinal (grasp points were read in rowid order).
+inline std::string schemaV2Sql() {
+  std::string s = schemaSql();
+  replaceOnce(&s, "  ordinal     INTEGER NOT NULL DEFAULT 0,\n", "");
+  replaceOnce(&s, "  claimed_by            TEXT,\n  claim_expires_at      REAL,\n  claims                INTEGER NOT NULL DEFAULT 0,\n", "");
+  return s;
+}
+
+/// Version 1: version 2 without generations (textiles.generation, simulations.generation in the
 /// UNIQUE constraint and the index, staged_generations).
 inline std::string schemaV1Sql() {
-  std::string s = schemaSql();
+  std::string s = schemaV2Sql();
   replaceOnce(&s, "  created_at     TEXT NOT NULL,\n  generation     INTEGER NOT NULL DEFAULT 0\n",
               "  created_at     TEXT NOT NULL\n");
   replaceOnce(&s, "  generation            INTEGER NOT NULL DEFAULT 0,\n", "");

@@ -8,13 +8,14 @@
 
 #include "../sim/sliding_particle_model.h"
 #include "../test_support.h"
+#include "test_database.h"
 #include "textile_handling/db/drape_database_builder.h"
 
 namespace textile_handling {
 namespace db {
 namespace {
 
-using test_support::TempDatabase;
+using test_support::TestDatabase;
 using test_support::ThreadScope;
 
 DrapeBuildConfig smallSquare(const ClothModelSpec& model) {
@@ -37,7 +38,7 @@ TEST(BuildWithAFiveDofModel, StoresPositionsAndMatchesTheParticleModelsRestShape
   five.set("coupling", 0.3).set("neighbour_mass", 0.02);
   EXPECT_EQ(five.options.at("jacobian"), "definite_fix");  // the build defaults follow the model's keys
 
-  TempDatabase t5("five_dof"), t3("three_dof");
+  TestDatabase t5("five_dof"), t3("three_dof");
   HangingDrapeDatabase db5(t5.path()), db3(t3.path());
   const DrapeBuildReport r5 = DrapeDatabaseBuilder(db5, smallSquare(five)).build();
   const DrapeBuildReport r3 = DrapeDatabaseBuilder(db3, smallSquare(DrapeBuildConfig::defaultModelSpec("particle_kes"))).build();

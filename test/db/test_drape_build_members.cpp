@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "../test_support.h"
+#include "test_database.h"
 #include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_match_index.h"
 
@@ -15,7 +16,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-using test_support::TempDatabase;
+using test_support::TestDatabase;
 
 // 30 x 30 cm square, d = 3 cm, two hold points of the fundamental domain (mirrors derived).
 DrapeBuildConfig smallSquare() {
@@ -75,7 +76,7 @@ TEST(DrapeBuildMembers, EveryMemberHasItsOwnParameterTextAndTheBaseKeepsTheOldOn
 }
 
 TEST(DrapeBuildMembers, MembersOfAHoldPointFormOneClassAndTheBuildResumes) {
-  TempDatabase t("members");
+  TestDatabase t("members");
   HangingDrapeDatabase db(t.path());
   const DrapeBuildConfig base = smallSquare();
   const std::vector<DrapeMemberSpec> members = drapeMembersByName("base,heap,soft_light");
@@ -114,7 +115,7 @@ TEST(DrapeBuildMembers, MembersOfAHoldPointFormOneClassAndTheBuildResumes) {
 }
 
 TEST(DrapeBuildMembers, BadMaterialVariationWritesNothing) {
-  TempDatabase t("members_bad");
+  TestDatabase t("members_bad");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();
   c.material_variation.bending = 0;

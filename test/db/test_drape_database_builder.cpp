@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "../test_support.h"
+#include "test_database.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/sim/cloth_topology.h"
@@ -23,7 +24,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-using test_support::TempDatabase;
+using test_support::TestDatabase;
 
 // 30 x 30 cm square, d = 3 cm, lattice 10 cm: quadrant x, y in {0, .10, .15} -> 9 simulated, 25 in all.
 DrapeBuildConfig smallSquare() {
@@ -44,7 +45,7 @@ double azimuthMod(double a) {
 }  // namespace
 
 TEST(DrapeDatabaseBuilder, SimulatesOneQuadrantAndDerivesTheMirrors) {
-  TempDatabase t("mirror");
+  TestDatabase t("mirror");
   HangingDrapeDatabase db(t.path());
   DrapeDatabaseBuilder b(db, smallSquare());
   EXPECT_TRUE(b.symmetricGrid());
@@ -129,7 +130,7 @@ TEST(DrapeDatabaseBuilder, SimulatesOneQuadrantAndDerivesTheMirrors) {
 }
 
 TEST(DrapeDatabaseBuilder, RebuildResumesAndSkipsDoneSimulations) {
-  TempDatabase t("resume");
+  TestDatabase t("resume");
   HangingDrapeDatabase db(t.path());
   {
     DrapeDatabaseBuilder b(db, smallSquare());
@@ -186,7 +187,7 @@ TEST(DrapeDatabaseBuilder, ParameterTextCoversTheSolverSettingsThatChangeShapes)
 }
 
 TEST(DrapeDatabaseBuilder, ParallelWorkersGiveTheSameShapes) {
-  TempDatabase t1("w1"), t2("w2");
+  TestDatabase t1("w1"), t2("w2");
   HangingDrapeDatabase db1(t1.path()), db2(t2.path());
   DrapeBuildConfig c = smallSquare();
   c.workers = 1;
@@ -202,7 +203,7 @@ TEST(DrapeDatabaseBuilder, ParallelWorkersGiveTheSameShapes) {
 }
 
 TEST(DrapeDatabaseBuilder, FailedSimulationsAreStoredWithTheirReason) {
-  TempDatabase t("fail");
+  TestDatabase t("fail");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();
   c.settings.max_time = 0.02;  // far too short to come to rest
@@ -235,7 +236,7 @@ TEST(DrapeDatabaseBuilder, FailedSimulationsAreStoredWithTheirReason) {
 }
 
 TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
-  TempDatabase t("invalid");
+  TestDatabase t("invalid");
   HangingDrapeDatabase db(t.path());
   auto expectInvalid = [&](const DrapeBuildConfig& c, const std::string& what) {
     try {
@@ -284,7 +285,7 @@ TEST(DrapeDatabaseBuilder, InvalidConfigurationsWriteNothing) {
 TEST(DrapeDatabaseBuilder, QuasiStaticRestShapesMatchTheDynamicBuild) {
   // The same two hold points built with both rest-shape methods into one file: different parameter
   // texts (no row is resumed across methods), rest shapes within 5 mm, threads chosen automatically.
-  TempDatabase t("quasi_static");
+  TestDatabase t("quasi_static");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();
   c.spacing = 0.015;
@@ -322,7 +323,7 @@ TEST(DrapeDatabaseBuilder, QuasiStaticRestShapesMatchTheDynamicBuild) {
 }
 
 TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {
-  TempDatabase t("asym");
+  TestDatabase t("asym");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c;
   c.textile = presetTextile("towel");
@@ -343,7 +344,7 @@ TEST(DrapeDatabaseBuilder, AsymmetricGridSimulatesEveryHoldPoint) {
 }
 
 TEST(DrapeDatabaseBuilder, ReportsPassesProgressAndFailuresThroughCallbacks) {
-  TempDatabase t("callbacks");
+  TestDatabase t("callbacks");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();
   c.settings.max_time = 0.02;  // every simulation fails quickly
@@ -416,7 +417,7 @@ TEST(DrapeDatabaseBuilder, BracketHoldIsACornerOfTheGridCell) {
 }
 
 TEST(DrapeDatabaseBuilder, BracketedHoldPointsGetOneRowPerCornerParticle) {
-  TempDatabase t("bracket");
+  TestDatabase t("bracket");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();  // quadrant points x, y in {0, .10, .15}; d = 3 cm
   c.bracket_hold_points = true;
@@ -470,7 +471,7 @@ TEST(DrapeDatabaseBuilder, SelfCollisionKeepsStoredShapesFreeOfIntersections) {
   // The 30 x 30 cm square held at its centre folds onto itself (thesis 5.4.3): without collision
   // handling its rest shape passes through itself, with self_collision it does not. The setting is
   // part of the parameter text, so the two builds are separate rows of the same file.
-  TempDatabase t("self_collision");
+  TestDatabase t("self_collision");
   HangingDrapeDatabase db(t.path());
   DrapeBuildConfig c = smallSquare();
   c.spacing = 0.025;

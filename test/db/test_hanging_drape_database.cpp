@@ -16,11 +16,13 @@
 #include <thread>
 
 #include "../test_support.h"
+#include "test_database.h"
 #include "schema_history.h"
 #include "textile_handling/db/blob_codec.h"
 #include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/db/sqlite_wrapper.h"
 #include "textile_handling/sim/drape_scene.h"
 
 using namespace textile_handling;
@@ -28,7 +30,7 @@ using namespace textile_handling::db;
 
 namespace {
 
-using test_support::TempDatabase;
+using test_support::TestDatabase;
 
 // A towel at d = 4 cm hanging straight down from the middle of its top edge, with a gentle wave.
 VecX hangingTowel(Index* held) {
@@ -78,19 +80,25 @@ NewSimulation newRow(std::int64_t textile, const Vec2& hold, const std::string& 
   return s;
 }
 
-void rawExec(const std::string& path, const std::string& sql) {
-  SqliteConnection c(path, SqliteConnection::kReadWrite);
-  c.exec(sql);
+/// A connection to the test's database behind the library's back (either backend).
+std::unique_ptr<SqlConnection> rawConnection(const std::string& path) {
+  SqlOpenOptions o;
+  o.create = false;
+  return openSqlConnection(path, o);
 }
+
+void rawExec(const std::string& path, const std::string& sql) { rawConnection(path)->exec(sql); }
 
 }  // namespace
 
 TEST(HangingDrapeDatabase, CreatesTheCurrentSchemaVersionInWalMode) {
-  TempDatabase t("create");
+  TestDatabase t("create");
   HangingDrapeDatabase db(t.path());
   EXPECT_EQ(db.schemaVersion(), HangingDrapeDatabase::kSchemaVersion);
   EXPECT_EQ(db.integrityCheck(), "ok");
-  db.withConnection([](SqliteConnection& c) {
+  EXPECT_TRUE(db.consistencyProblems().empty());
+  if (t.isPostgres()) return;  // the rest is about the SQLite file
+  db.withConnection([](SqlConnection& c) {
     EXPECT_EQ(c.queryText("PRAGMA journal_mode"), "wal");
     EXPECT_EQ(c.queryInt("PRAGMA foreign_keys"), 1);
     EXPECT_EQ(c.queryInt("PRAGMA application_id"), HangingDrapeDatabase::kApplicationId);
@@ -100,7 +108,7 @@ TEST(HangingDrapeDatabase, CreatesTheCurrentSchemaVersionInWalMode) {
 }
 
 TEST(HangingDrapeDatabase, TextileRoundTrip) {
-  TempDatabase t("textile");
+  TestDatabase t("textile");
   std::int64_t id = 0;
   {
     HangingDrapeDatabase db(t.path());
@@ -132,7 +140,7 @@ TEST(HangingDrapeDatabase, TextileRoundTrip) {
 }
 
 TEST(HangingDrapeDatabase, SimulationRoundTripIsAtomicAndExact) {
-  TempDatabase t("sim");
+  TestDatabase t("sim");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   std::vector<NewSimulation> rows = {newRow(tex, Vec2(0.32, 0.44)), newRow(tex, Vec2(0.0, 0.0))};
@@ -222,7 +230,7 @@ TEST(HangingDrapeDatabase, SimulationRoundTripIsAtomicAndExact) {
 }
 
 TEST(HangingDrapeDatabase, BadInputIsRejectedAndStoredDataStayIntact) {
-  TempDatabase t("bad");
+  TestDatabase t("bad");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1))});
@@ -287,7 +295,7 @@ TEST(HangingDrapeDatabase, BadInputIsRejectedAndStoredDataStayIntact) {
 }
 
 TEST(HangingDrapeDatabase, FailedRowsKeepTheirReasonAndCanBeRetried) {
-  TempDatabase t("failed");
+  TestDatabase t("failed");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1)), newRow(tex, Vec2(0.2, 0.1))});
@@ -309,7 +317,7 @@ TEST(HangingDrapeDatabase, FailedRowsKeepTheirReasonAndCanBeRetried) {
 }
 
 TEST(HangingDrapeDatabase, DamagedBlobsGiveTypedErrors) {
-  TempDatabase t("damaged");
+  TestDatabase t("damaged");
   std::vector<std::int64_t> ids;
   {
     HangingDrapeDatabase db(t.path());
@@ -322,9 +330,10 @@ TEST(HangingDrapeDatabase, DamagedBlobsGiveTypedErrors) {
   rawExec(t.path(),
           "UPDATE views SET mask = substr(mask, 1, length(mask) - 1) WHERE id = (SELECT min(id) FROM views WHERE "
           "simulation_id = " + std::to_string(ids[1]) + ")");
+  const std::string byte_ff = t.isPostgres() ? "'\\xff'::bytea" : "X'FF'";
   rawExec(t.path(),
-          "UPDATE views SET mask = substr(mask, 1, 40) || X'FF' || substr(mask, 42) WHERE id = (SELECT max(id) FROM "
-          "views WHERE simulation_id = " + std::to_string(ids[1]) + ")");
+          "UPDATE views SET mask = substr(mask, 1, 40) || " + byte_ff + " || substr(mask, 42) WHERE id = (SELECT max(id) "
+          "FROM views WHERE simulation_id = " + std::to_string(ids[1]) + ")");
   HangingDrapeDatabase db(t.path());
   EXPECT_EQ(db.integrityCheck(), "ok");  // SQLite-level fine; our blobs are not
   try {
@@ -344,7 +353,7 @@ TEST(HangingDrapeDatabase, DamagedBlobsGiveTypedErrors) {
 }
 
 TEST(HangingDrapeDatabase, NewerSchemaIsRefusedAndLeftUntouched) {
-  TempDatabase t("future");
+  TestDatabase t("future");
   { HangingDrapeDatabase db(t.path()); }
   rawExec(t.path(), "UPDATE schema_version SET version = 7");
   for (bool ro : {false, true}) {
@@ -358,13 +367,14 @@ TEST(HangingDrapeDatabase, NewerSchemaIsRefusedAndLeftUntouched) {
       EXPECT_NE(std::string(e.what()).find("newer"), std::string::npos) << e.what();
     }
   }
-  SqliteConnection c(t.path(), SqliteConnection::kReadOnly);
-  EXPECT_EQ(c.queryInt("SELECT version FROM schema_version"), 7);
-  EXPECT_EQ(c.queryInt("SELECT count(*) FROM sqlite_master WHERE name = 'views'"), 1);
+  const auto c = rawConnection(t.path());
+  EXPECT_EQ(c->queryInt("SELECT version FROM schema_version"), 7);
+  EXPECT_EQ(c->queryInt("SELECT count(*) FROM views"), 0);  // the tables are all still there
 }
 
 TEST(HangingDrapeDatabase, VersionZeroFileIsMigrated) {
-  TempDatabase t("v0");
+  TH_SQLITE_FILES_ONLY();
+  TestDatabase t("v0");
   const std::string v0 = schema_history::schemaV0Sql();
   const vision::BitMask mask = makeResult(1).views[0].mask;
   const auto blob = encodeMask(mask);
@@ -397,7 +407,7 @@ TEST(HangingDrapeDatabase, VersionZeroFileIsMigrated) {
     EXPECT_GT(views[0].area, 0);
   }
   // A v0 file whose mask is damaged cannot be migrated: clear error, file left at v0.
-  TempDatabase t2("v0bad");
+  TestDatabase t2("v0bad");
   {
     SqliteConnection c(t2.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
     c.exec(v0);
@@ -420,14 +430,54 @@ TEST(HangingDrapeDatabase, VersionZeroFileIsMigrated) {
   EXPECT_THROW(HangingDrapeDatabase(t2.path(), ro), SchemaVersionError);
 }
 
+TEST(HangingDrapeDatabase, ADatabaseOfAnotherApplicationIsRefusedUntouched) {
+  TestDatabase t("other_app");
+  {
+    const auto c = openSqlConnection(t.path(), SqlOpenOptions{});
+    c->exec("CREATE TABLE recipes(name TEXT); INSERT INTO recipes VALUES ('soup')");
+  }
+  for (bool ro : {false, true}) {
+    DatabaseOpenOptions o;
+    o.read_only = ro;
+    EXPECT_THROW(HangingDrapeDatabase db(t.path(), o), SchemaVersionError);
+  }
+  const auto c = rawConnection(t.path());
+  EXPECT_EQ(c->queryText("SELECT name FROM recipes"), "soup");
+  EXPECT_THROW(c->queryInt("SELECT count(*) FROM schema_version"), DrapeDatabaseError);
+}
+
+TEST(HangingDrapeDatabase, VersionTwoFileKeepsTheOrderOfItsGraspPoints) {
+  TH_SQLITE_FILES_ONLY();
+  TestDatabase t("v2");
+  {
+    SqliteConnection c(t.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
+    c.exec(schema_history::schemaV2Sql());
+    c.exec("INSERT INTO schema_version VALUES (2, 'then');"
+           "INSERT INTO textiles(id, name, outline, material_name, material_yaml, symmetry, symmetry_cx, symmetry_cy, "
+           "created_at) VALUES (1, 'cloth', '0 0\n1 0\n1 1\n0 1\n', 'cotton', '" +
+           materialToYaml(Material::cotton()) +
+           "', 'xy', 0.5, 0.5, 'then');"
+           "INSERT INTO grasp_points VALUES (1, 'z', 'corner', 0, 0), (1, 'a', 'corner', 1, 0), (1, 'm', 'grasp', 1, 1);");
+  }
+  HangingDrapeDatabase db(t.path());
+  EXPECT_EQ(db.schemaVersion(), 3);
+  const TextileRecord r = db.textile(1);
+  ASSERT_EQ(r.outline.named_points.size(), 3u);
+  EXPECT_EQ(r.outline.named_points[0].name, "z");
+  EXPECT_EQ(r.outline.named_points[1].name, "a");
+  EXPECT_EQ(r.outline.named_points[2].name, "m");
+  EXPECT_TRUE(db.consistencyProblems().empty());
+}
+
 TEST(HangingDrapeDatabase, ForeignFilesAreRefused) {
-  TempDatabase other("other");
+  TH_SQLITE_FILES_ONLY();
+  TestDatabase other("other");
   {
     SqliteConnection c(other.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
     c.exec("CREATE TABLE recipes(name TEXT)");
   }
   EXPECT_THROW(HangingDrapeDatabase db(other.path()), SchemaVersionError);
-  TempDatabase garbage("garbage");
+  TestDatabase garbage("garbage");
   {
     std::ofstream f(garbage.path());
     f << "this is not an SQLite database, just text that is long enough to look like a header........";
@@ -439,7 +489,7 @@ TEST(HangingDrapeDatabase, ForeignFilesAreRefused) {
 }
 
 TEST(HangingDrapeDatabase, ReadOnlyHandleRefusesWrites) {
-  TempDatabase t("ro");
+  TestDatabase t("ro");
   { HangingDrapeDatabase db(t.path()); }
   DatabaseOpenOptions o;
   o.read_only = true;
@@ -449,7 +499,7 @@ TEST(HangingDrapeDatabase, ReadOnlyHandleRefusesWrites) {
 }
 
 TEST(HangingDrapeDatabase, ConcurrentWritersThroughOneHandle) {
-  TempDatabase t("threads");
+  TestDatabase t("threads");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   std::vector<NewSimulation> rows;
@@ -476,9 +526,10 @@ std::string fileBytes(const std::string& path) {
 }  // namespace
 
 TEST(HangingDrapeDatabase, RefusedFilesAreNotSwitchedToWal) {
+  TH_SQLITE_FILES_ONLY();
   // Opening read-write used to switch the journal to WAL before checking what the file is, which
   // rewrote the header of foreign and newer files that it then refused.
-  TempDatabase other("foreign_rollback");
+  TestDatabase other("foreign_rollback");
   {
     SqliteConnection c(other.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
     c.exec("CREATE TABLE recipes(name TEXT); INSERT INTO recipes VALUES ('soup')");
@@ -492,7 +543,7 @@ TEST(HangingDrapeDatabase, RefusedFilesAreNotSwitchedToWal) {
     EXPECT_EQ(c.queryText("PRAGMA journal_mode"), "delete");
   }
 
-  TempDatabase future("future_rollback");
+  TestDatabase future("future_rollback");
   { HangingDrapeDatabase db(future.path()); }
   rawExec(future.path(), "PRAGMA journal_mode = DELETE; UPDATE schema_version SET version = 9");
   const std::string fbefore = fileBytes(future.path());
@@ -503,7 +554,8 @@ TEST(HangingDrapeDatabase, RefusedFilesAreNotSwitchedToWal) {
 }
 
 TEST(HangingDrapeDatabase, EmptyFileOfAnotherApplicationIsRefused) {
-  TempDatabase t("foreign_empty");
+  TH_SQLITE_FILES_ONLY();
+  TestDatabase t("foreign_empty");
   {
     SqliteConnection c(t.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);
     c.exec("PRAGMA application_id = 1234");  // no tables, but claimed by another program
@@ -518,7 +570,7 @@ TEST(HangingDrapeDatabase, ConcurrentOpeningOfANewFileCreatesOneSchema) {
   // Several processes (here: handles on their own connections) opening a fresh path at once: the
   // check "file is empty" and the creation of the schema must be one atomic step.
   for (int round = 0; round < 5; ++round) {
-    TempDatabase t("concurrent_create_" + std::to_string(round));
+    TestDatabase t("concurrent_create_" + std::to_string(round));
     std::vector<std::thread> pool;
     std::vector<std::string> errors(6);
     std::atomic<int> ready{0};
@@ -535,8 +587,7 @@ TEST(HangingDrapeDatabase, ConcurrentOpeningOfANewFileCreatesOneSchema) {
       });
     for (auto& th : pool) th.join();
     for (const auto& e : errors) EXPECT_TRUE(e.empty()) << e;
-    SqliteConnection c(t.path(), SqliteConnection::kReadOnly);
-    EXPECT_EQ(c.queryInt("SELECT count(*) FROM schema_version"), 1);
+    EXPECT_EQ(rawConnection(t.path())->queryInt("SELECT count(*) FROM schema_version"), 1);
   }
 }
 
@@ -544,7 +595,7 @@ TEST(HangingDrapeDatabase, ConcurrentEnsureTextileGivesOneRow) {
   // Two builders of the same textile started at once (separate handles, as separate processes) must
   // both get the one stored row; neither may fail with "already stored" or a UNIQUE violation.
   for (int round = 0; round < 5; ++round) {
-    TempDatabase t("concurrent_textile_" + std::to_string(round));
+    TestDatabase t("concurrent_textile_" + std::to_string(round));
     { HangingDrapeDatabase db(t.path()); }
     std::vector<std::int64_t> ids(6, -1);
     std::vector<std::string> errors(6);
@@ -572,7 +623,7 @@ TEST(HangingDrapeDatabase, ConcurrentEnsureTextileGivesOneRow) {
 }
 
 TEST(HangingDrapeDatabase, DerivedRowCannotBeStoredBeforeItsSource) {
-  TempDatabase t("derived_first");
+  TestDatabase t("derived_first");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   NewSimulation src = newRow(tex, Vec2(0.0, 0.0));
@@ -600,7 +651,7 @@ TEST(HangingDrapeDatabase, DerivedRowCannotBeStoredBeforeItsSource) {
 }
 
 TEST(HangingDrapeDatabase, UnknownSimulationIdsAreReportedAsSuch) {
-  TempDatabase t("unknown_ids");
+  TestDatabase t("unknown_ids");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1))});
@@ -621,7 +672,7 @@ TEST(HangingDrapeDatabase, UnknownSimulationIdsAreReportedAsSuch) {
 }
 
 TEST(HangingDrapeDatabase, ViewPngsOfFractionalAnglesDoNotOverwriteEachOther) {
-  TempDatabase t("png_names");
+  TestDatabase t("png_names");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   const auto ids = db.addSimulations({newRow(tex, Vec2(0.1, 0.1))});
@@ -648,7 +699,7 @@ TEST(HangingDrapeDatabase, MatchIndexLatticeSpansRowsOfSeveralBuilds) {
   // lattice ranks. The index must rank the hold points it loaded together; with the stored ranks,
   // (0, 0.1) and (0.2, 0.1) were "neighbours" (ranks 0 and 1 of the first build) although (0.1, 0.1)
   // of the second build lies between them.
-  TempDatabase t("lattice_union");
+  TestDatabase t("lattice_union");
   HangingDrapeDatabase db(t.path());
   const std::int64_t tex = db.addTextile(presetTextile("towel"), Material::cotton());
   NewSimulation a0 = newRow(tex, Vec2(0.0, 0.1), "build A\n"), a1 = newRow(tex, Vec2(0.2, 0.1), "build A\n");

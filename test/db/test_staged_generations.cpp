@@ -8,17 +8,19 @@
 #include <string>
 
 #include "../test_support.h"
+#include "test_database.h"
 #include "schema_history.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_match_index.h"
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/db/sqlite_wrapper.h"
 
 using namespace textile_handling;
 using namespace textile_handling::db;
 
 namespace {
 
-using test_support::TempDatabase;
+using test_support::TestDatabase;
 
 // 30 x 30 cm square, d = 5 cm, lattice 15 cm: 4 simulated hold points, 9 in all, 8 views each.
 DrapeBuildConfig tinySquare() {
@@ -61,7 +63,7 @@ DrapeBuildConfig buildAndStage(HangingDrapeDatabase& db, std::int64_t* textile_i
 }  // namespace
 
 TEST(StagedGenerations, RebuildIsInvisibleUntilPromotedThenReplacesEverything) {
-  TempDatabase t("gen_swap");
+  TestDatabase t("gen_swap");
   HangingDrapeDatabase db(t.path());
   std::int64_t id = 0;
   const DrapeBuildConfig staged_config = buildAndStage(db, &id);
@@ -113,7 +115,7 @@ TEST(StagedGenerations, RebuildIsInvisibleUntilPromotedThenReplacesEverything) {
 }
 
 TEST(StagedGenerations, IncompleteOrFailedStagedBuildsAreNotPromoted) {
-  TempDatabase t("gen_incomplete");
+  TestDatabase t("gen_incomplete");
   HangingDrapeDatabase db(t.path());
   std::int64_t id = 0;
   DrapeBuildConfig staged_config = buildAndStage(db, &id);
@@ -153,7 +155,7 @@ TEST(StagedGenerations, IncompleteOrFailedStagedBuildsAreNotPromoted) {
 }
 
 TEST(StagedGenerations, StagingAgainDiscardsTheUnpromotedGeneration) {
-  TempDatabase t("gen_restage");
+  TestDatabase t("gen_restage");
   HangingDrapeDatabase db(t.path());
   std::int64_t id = 0;
   DrapeBuildConfig staged_config = buildAndStage(db, &id);
@@ -176,7 +178,7 @@ TEST(StagedGenerations, StagingAgainDiscardsTheUnpromotedGeneration) {
 }
 
 TEST(StagedGenerations, BadStagingAndRowsOfOtherGenerationsAreRefused) {
-  TempDatabase t("gen_refuse");
+  TestDatabase t("gen_refuse");
   HangingDrapeDatabase db(t.path());
   std::int64_t id = 0;
   DrapeBuildConfig staged_config = buildAndStage(db, &id);
@@ -203,7 +205,8 @@ TEST(StagedGenerations, BadStagingAndRowsOfOtherGenerationsAreRefused) {
 }
 
 TEST(StagedGenerations, VersionOneFileIsMigratedToGenerations) {
-  TempDatabase t("gen_v1");
+  TH_SQLITE_FILES_ONLY();
+  TestDatabase t("gen_v1");
   const std::string v1 = schema_history::schemaV1Sql();
   {
     SqliteConnection c(t.path(), SqliteConnection::kReadWrite | SqliteConnection::kCreate);

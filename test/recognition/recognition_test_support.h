@@ -67,15 +67,15 @@ inline int flipStoredMaskBytes(const std::string& db_path, const std::vector<std
                                std::size_t offset = 40) {
   db::HangingDrapeDatabase database(db_path);
   int changed = 0;
-  database.withConnection([&](db::SqliteConnection& c) {
+  database.withConnection([&](db::SqlConnection& c) {
     for (std::int64_t id : view_ids) {
-      db::SqliteStatement q = c.prepare("SELECT mask FROM views WHERE id = ?1");
+      db::SqlStatement q = c.prepare("SELECT mask FROM views WHERE id = ?1");
       q.bind(1, id);
       if (!q.step()) continue;
       std::vector<std::uint8_t> blob = q.getBlob(0);
       if (blob.empty()) continue;
       blob[offset % blob.size()] ^= 0xFF;
-      db::SqliteStatement u = c.prepare("UPDATE views SET mask = ?1 WHERE id = ?2");
+      db::SqlStatement u = c.prepare("UPDATE views SET mask = ?1 WHERE id = ?2");
       u.bindBlob(1, blob).bind(2, id);
       u.step();
       ++changed;
@@ -88,8 +88,8 @@ inline int flipStoredMaskBytes(const std::string& db_path, const std::vector<std
 inline std::vector<std::int64_t> storedViewIds(const std::string& db_path) {
   db::HangingDrapeDatabase database(db_path);
   std::vector<std::int64_t> ids;
-  database.withConnection([&](db::SqliteConnection& c) {
-    db::SqliteStatement q = c.prepare("SELECT id FROM views ORDER BY id");
+  database.withConnection([&](db::SqlConnection& c) {
+    db::SqlStatement q = c.prepare("SELECT id FROM views ORDER BY id");
     while (q.step()) ids.push_back(q.getInt(0));
   });
   return ids;

@@ -226,8 +226,8 @@ TEST_F(EvidenceTest, ManyDamagedOrLostViewsMakeTheDatabaseIncomplete) {
     const std::string path = dbCopy(db_path_, "lost");
     {
       db::HangingDrapeDatabase db(path);
-      db.withConnection([&](db::SqliteConnection& c) {
-        db::SqliteStatement d = c.prepare("DELETE FROM views WHERE simulation_id IN (?1, ?2)");
+      db.withConnection([&](db::SqlConnection& c) {
+        db::SqlStatement d = c.prepare("DELETE FROM views WHERE simulation_id IN (?1, ?2)");
         d.bind(1, sims_[1].id).bind(2, sims_[2].id);
         d.step();
       });

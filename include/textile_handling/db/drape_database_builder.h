@@ -9,11 +9,14 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "textile_handling/db/hanging_drape_database.h"
+#include "textile_handling/db/simulation_outcome_codec.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/rest_shape_search.h"
 #include "textile_handling/vision/silhouette_renderer.h"
@@ -23,7 +26,10 @@ namespace db {
 
 namespace internal {
 struct PassPlan;
+struct BuildMesh;
 }  // namespace internal
+
+class RemoteSimulator;  // below
 
 /// One pass of a build, as reported to DrapeBuildConfig::on_pass_start / on_pass_end.
 struct DrapeBuildPass {
@@ -148,6 +154,13 @@ struct DrapeBuildConfig {
   /// fewer jobs than cores gives the idle cores to the simulations and never oversubscribes.
   int threads_per_simulation = 0;
   bool retry_failed = false;        ///< reset failed rows to pending before building
+  /// Several builders on one database (docs/database.md, "Concurrent builders"): a row is claimed before
+  /// it runs, the claims are renewed every claim_lease_s / 3 while the build runs, and a row whose
+  /// builder stopped renewing is taken over once its lease has run out.
+  double claim_lease_s = 60;
+  std::string claim_owner;          ///< this builder's name in the claims; empty = "<host>:<pid>:<n>"
+  /// Non-null: the simulations run there (one worker thread per slot), the rest of the build here.
+  std::shared_ptr<RemoteSimulator> remote;
 
   // ---- reporting (the builder prints nothing; every callback is optional) ----
   // A build runs one pass, or one per bracket corner (bracket_hold_points). The callbacks are called
@@ -185,6 +198,7 @@ struct DrapeBuildReport {
   int simulated_now = 0;          ///< simulations finished (done) in this build
   int failed_now = 0;             ///< simulations that failed in this build
   int derived_now = 0;            ///< mirror rows derived in this build
+  int done_elsewhere = 0;         ///< jobs another builder of the same database finished (done or failed)
   double wall_seconds = 0;
   double simulation_seconds = 0;  ///< sum of the simulations' wall times
   std::vector<std::string> failures;  ///< "hold (x, y): reason"
@@ -194,11 +208,32 @@ struct DrapeBuildReport {
 /// textile id and generation become part's.
 void accumulateBuildReport(DrapeBuildReport& total, const DrapeBuildReport& part);
 
+/// Runs a pass's simulations in other processes (the MPI build farm, docs/build_farm.md): the builder
+/// plans, claims, derives the mirror rows and stores; the other side only simulates, with
+/// DrapeDatabaseBuilder::simulateHoldPoint of a builder of the same configuration.
+class RemoteSimulator {
+ public:
+  virtual ~RemoteSimulator() = default;
+  /// Simulations that can run at once: the pass runs this many worker threads, slots 0 .. slots() - 1.
+  virtual int slots() const = 0;
+  /// Simulates hold point `plan_index` of pass `corner` as row `simulation_id` on `slot` (never two calls
+  /// for one slot at a time). Throws DrapeDatabaseError if the other side is gone or answers garbage.
+  virtual SimulationOutcome simulate(int slot, int corner, std::size_t plan_index, std::int64_t simulation_id) = 0;
+};
+
 class DrapeDatabaseBuilder {
  public:
   /// Validates the configuration (outline, material, finite settings: by building the scene of the
   /// first hold point) and throws InvalidInputError before anything is written.
   DrapeDatabaseBuilder(HangingDrapeDatabase& db, DrapeBuildConfig config);
+  /// A builder without a database, for a build farm's worker process: it validates and plans as the
+  /// builder of the same configuration does and only runs simulateHoldPoint(); build() throws.
+  explicit DrapeDatabaseBuilder(DrapeBuildConfig config);
+
+  /// The simulation of hold point `plan_index` of pass `corner` (-1: the unbracketed pass; 0..3 with
+  /// bracket_hold_points) as row `simulation_id`, with its views: what a build stores for that row. The
+  /// remote half of RemoteSimulator; needs no database. Throws InvalidInputError for a bad corner/index.
+  SimulationOutcome simulateHoldPoint(int corner, std::size_t plan_index, std::int64_t simulation_id) const;
 
   /// Plans (or re-plans) the rows and runs every pending one. Throws DrapeDatabaseError on database
   /// failures (the simulations committed so far stay).
@@ -233,13 +268,20 @@ class DrapeDatabaseBuilder {
   /// The textile and generation the rows go to (DrapeBuildConfig::staged_textile_id).
   std::pair<std::int64_t, std::int64_t> targetTextile();
 
-  HangingDrapeDatabase& db_;
+  HangingDrapeDatabase& database() const;  ///< throws InvalidInputError for a simulate-only builder
+  /// Claims row `id` for this builder, also when a dead builder of this machine holds it.
+  bool claimRow(std::int64_t id);
+
+  HangingDrapeDatabase* db_ = nullptr;
   DrapeBuildConfig config_;
   TextileSymmetry symmetry_;
   bool symmetric_grid_ = false;
   std::vector<Vec2> canonical_;   ///< the simulated (fundamental-domain) hold points
   ParticleGrid grid_;             ///< the particle grid of every simulation
   std::vector<PlannedHoldPoint> plan_;
+  std::string claim_owner_;       ///< this builder's name in the row claims
+  mutable std::once_flag mesh_once_;                    ///< simulateHoldPoint's mesh, made once
+  mutable std::shared_ptr<internal::BuildMesh> mesh_;
 };
 
 /// Silhouettes of a mirrored shape from the source shape's silhouettes. With the world mirror of

@@ -1,20 +1,22 @@
-// The hanging-drape database: an embedded SQLite file with the textiles, the drape simulations (one per
-// textile, hold point and parameter set, with status, timings and final particle positions) and the
-// rendered silhouette views of every finished simulation. ROS-free. Schema, blob formats, crash safety
-// and migrations: docs/database.md.
+// The hanging-drape database: the textiles, the drape simulations (one per textile, hold point and
+// parameter set, with status, timings and final particle positions) and the rendered silhouette views of
+// every finished simulation, in an embedded SQLite file or on a PostgreSQL server (the setting: a path or
+// a postgresql:// URL; sql_connection.h). ROS-free. Schema, blob formats, crash safety, migrations,
+// backends and concurrent builders: docs/database.md.
 //
 // Guarantees:
-//  * WAL journal, foreign keys on, every write in a transaction; a simulation's positions, its views and
+//  * (SQLite) WAL journal, foreign keys on; every write in a transaction under the writers' lock; a simulation's positions, its views and
 //    its status change are committed together (storeResults), so a killed writer loses at most the
 //    simulations it had not committed, and the file always opens cleanly;
 //  * bad input (unknown id, invalid polygon or material, NaN, mismatched sizes) is rejected with a typed
 //    error before anything is written;
 //  * blobs are versioned and checksummed (blob_codec.h); a damaged blob raises BlobFormatError naming
 //    the row; an unknown schema version raises SchemaVersionError and leaves the file untouched.
-// Thread-safe: every public method locks an internal mutex (one SQLite connection per object).
+// Thread-safe: every public method locks an internal mutex (one connection per object).
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -22,7 +24,7 @@
 #include <vector>
 
 #include "textile_handling/db/database_errors.h"
-#include "textile_handling/db/sqlite_wrapper.h"
+#include "textile_handling/db/sql_connection.h"
 #include "textile_handling/db/textile_symmetry.h"
 #include "textile_handling/sim/material.h"
 #include "textile_handling/sim/textile_geometry.h"
@@ -150,7 +152,7 @@ struct PromotionReport {
 
 class HangingDrapeDatabase {
  public:
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
   /// PRAGMA application_id of drape databases ("THDB").
   static constexpr std::int32_t kApplicationId = 0x54484442;
 
@@ -208,12 +210,34 @@ class HangingDrapeDatabase {
   /// (SimulationRecord::active tells the rows readers use).
   std::vector<SimulationRecord> simulations(std::int64_t textile_id = 0,
                                             std::optional<SimulationStatus> status = std::nullopt) const;
-  /// Stores results atomically: all rows become done with their positions and views, or (on any error)
-  /// nothing changes. Rows must exist and not be done; a mirror-derived row needs its source done
-  /// already or in the same batch. Throws InvalidInputError / NotFoundError.
-  void storeResults(const std::vector<SimulationResult>& results);
-  /// Marks a row failed with a reason (not allowed for done rows).
-  void markFailed(std::int64_t id, const std::string& reason);
+  /// Stores results atomically: all rows become done with their positions and views (their claims
+  /// cleared), or (on any error) nothing changes. Rows must exist and not be done; a mirror-derived row
+  /// needs its source done already or in the same batch. With `skip_done`, rows another builder finished
+  /// meanwhile are left as they are instead of refused. Returns the rows stored. Throws
+  /// InvalidInputError / NotFoundError.
+  std::size_t storeResults(const std::vector<SimulationResult>& results, bool skip_done = false);
+  /// Marks a row failed with a reason (not allowed for done rows; with `skip_done` a done row is left
+  /// as it is and false returned).
+  bool markFailed(std::int64_t id, const std::string& reason, bool skip_done = false);
+
+  // ---- claims: several builders on one database (docs/database.md, "Concurrent builders") ----------
+  /// The claim state of one row.
+  struct ClaimState {
+    SimulationStatus status = SimulationStatus::kPending;
+    std::string claimed_by;     ///< empty: unclaimed
+    bool expired = false;       ///< the claim's lease has run out (its builder stopped renewing it)
+    std::int64_t claims = 0;    ///< claims ever made on the row (a row run twice has 2)
+  };
+  /// Claims pending row `id` for `owner` for `lease_s` seconds of the database's clock: true if the row is
+  /// pending and unclaimed, already `owner`'s, its claim expired, or it is claimed by `dead_owner` (a
+  /// builder known to have died, whose lease need not be waited for). A new claim is counted. Throws
+  /// NotFoundError (unknown id), InvalidInputError (empty owner, lease not in (0, 1e6]).
+  bool claimSimulation(std::int64_t id, const std::string& owner, double lease_s, const std::string& dead_owner = "");
+  /// Extends every claim `owner` holds on pending rows to `lease_s` from now; returns their number.
+  int renewClaims(const std::string& owner, double lease_s);
+  /// Gives up `owner`'s claims on pending rows (a builder stopping early); returns their number.
+  int releaseClaims(const std::string& owner);
+  ClaimState claimState(std::int64_t id) const;  ///< throws NotFoundError
   /// Failed rows of a textile (0 = all) back to pending; returns how many.
   int resetFailed(std::int64_t textile_id = 0);
   /// Final positions of a done simulation. Throws NotFoundError, BlobFormatError.
@@ -234,31 +258,36 @@ class HangingDrapeDatabase {
 
   /// Runs f(connection) under the object's lock (for loaders that need one custom query).
   template <typename F>
-  auto withConnection(F&& f) const -> decltype(f(std::declval<SqliteConnection&>())) {
+  auto withConnection(F&& f) const -> decltype(f(std::declval<SqlConnection&>())) {
     std::lock_guard<std::mutex> lock(mutex_);
-    return f(conn_);
+    return f(*conn_);
   }
 
  private:
   void initialiseSchema();
+  void initialisePostgresSchema(std::int64_t objects, std::int64_t version);
   void requireWritable(const char* what) const;
-  SimulationRecord readSimulation(SqliteStatement& st) const;
+  /// Within a write transaction whose commit changes what readers see: notifies PostgreSQL listeners
+  /// (DatabaseChangeWatcher) on commit.
+  void notifyReaders();
+  SimulationRecord readSimulation(SqlStatement& st) const;
 
   std::string path_;
   bool read_only_ = false;
   int busy_timeout_ms_ = 10000;
-  mutable SqliteConnection conn_;
+  std::unique_ptr<SqlConnection> conn_;  // SQLite or PostgreSQL (openSqlConnection)
   mutable std::mutex mutex_;
 };
 
 /// The schema migrations: migrateSchemaStep(conn, from) upgrades a database of version `from` to
 /// `from + 1` inside the caller's transaction, which runs with foreign keys off (v0 -> v1: views get the
-/// `area` column, filled from the mask blobs; v1 -> v2: generations, see docs/database.md). Exposed for
+/// `area` column, filled from the mask blobs; v1 -> v2: generations; v2 -> v3: grasp points get their
+/// `ordinal`; see docs/database.md). Exposed for
 /// tests. Throws on failure (the caller rolls back).
-void migrateSchemaStep(SqliteConnection& conn, int from_version);
+void migrateSchemaStep(SqlConnection& conn, int from_version);
 
 /// The DDL of the current schema version (docs/database.md).
-std::string schemaSql();
+std::string schemaSql(SqlDialect dialect = SqlDialect::kSqlite);
 
 /// Outline vertices as text ("x y" per line, round-trip precision) and back. fromText throws
 /// InvalidInputError for malformed text.

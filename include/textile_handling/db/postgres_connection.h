@@ -94,6 +94,9 @@ class PgConnection {
   const std::string& url() const { return url_; }
   /// Whether the connection is still usable (false after the server went away).
   bool isOk() const;
+  /// After a lost connection: connects again with the same parameters (session settings and LISTENs
+  /// are gone with the old one). True if the server answered.
+  bool reconnect();
   /// Runs one or more statements without parameters or results. Throws PostgresError.
   void exec(const std::string& sql);
   /// Runs one statement with parameters $1..$n and returns its rows. Throws PostgresError.

@@ -99,8 +99,8 @@ class TextileRegistry {
   using ProgressCallback = std::function<void(const BuildProgressEvent&)>;
   using ChangedCallback = std::function<void(std::int64_t textile_id)>;
 
-  /// Opens (creates) the database at `database_path` (missing directories get mode 0755 whatever the
-  /// umask) and starts the worker. Throws db::DrapeDatabaseError if the file cannot be opened,
+  /// Opens (creates) the database at `database_path`, an SQLite file (missing directories get mode 0755
+  /// whatever the umask) or a `postgresql://` URL, and starts the worker. Throws db::DrapeDatabaseError if the file cannot be opened,
   /// OutputError if its directory cannot be created, std::invalid_argument for bad options.
   TextileRegistry(std::string database_path, RegistryOptions options, ProgressCallback on_progress = {},
                   ChangedCallback on_changed = {});
@@ -141,7 +141,8 @@ class TextileRegistry {
   int pendingJobs() const;
   /// Blocks until no job is waiting or running, or `timeout_s` passed; returns true when idle.
   bool waitIdle(double timeout_s) const;
-  const std::string& databasePath() const { return path_; }
+  /// The database setting as messages may show it (a URL's password replaced by ***).
+  const std::string& databasePath() const { return db_->path(); }
 
  private:
   struct Job {
