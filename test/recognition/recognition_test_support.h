@@ -14,9 +14,12 @@
 #include <Eigen/Geometry>
 
 #include "../test_support.h"
+#include "textile_handling/db/drape_database_builder.h"
+#include "textile_handling/db/drape_export.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/sqlite_wrapper.h"
 #include "textile_handling/recognition/recognition_errors.h"
+#include "textile_handling/recognition/textile_recognizer.h"
 #include "textile_handling/sim/textile_geometry.h"
 #include "textile_handling/vision/shaded_renderer.h"
 
@@ -37,6 +40,20 @@ inline TextileOutline smallTowel() {
   return t;
 }
 
+/// The small towel's database build of the recognition tests: d = 3 cm, hold points 12 cm apart, 12
+/// views of a 64 px frame 0.6 m wide (callers link the builder library).
+inline db::DrapeBuildConfig smallTowelBuildConfig() {
+  db::DrapeBuildConfig c;
+  c.textile = smallTowel();
+  c.spacing = 0.03;
+  c.lattice_spacing = 0.12;
+  c.frame = vision::CanonicalFrame::fromMetric(0.6, 0.6, 64);
+  c.views.count = 12;
+  c.views.step_deg = 30;
+  c.workers = 2;
+  return c;
+}
+
 // The camera of a test view: VGA, 1.5 m from the hold axis at azimuth `azimuth` (world), 25 cm below the
 // hold point, looking at a point 20 cm below it (tilted up), rolled by 4 degrees.
 inline vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
@@ -44,6 +61,26 @@ inline vision::CameraPose testCamera(const Vec3& hold, double azimuth) {
   vision::CameraPose pose = vision::CameraPose::lookAt(eye, hold + Vec3(0, 0, -0.2));
   pose.rotation = pose.rotation * Eigen::AngleAxisd(4.0 * kPi / 180.0, Vec3::UnitZ()).toRotationMatrix();
   return pose;
+}
+
+/// A stored shape seen by testCamera at `azimuth`: a shaded VGA image with noise (and its rendered depth if
+/// `depth`), the hold point and up direction in the camera frame.
+inline recognition::CameraObservation renderedObservation(const db::StoredDrapeMesh& mesh, double azimuth,
+                                                          bool depth = false) {
+  const Vec3 hold = mesh.positions.segment<3>(3 * mesh.held_particle);
+  vision::ShadedRenderOptions ro;
+  ro.intrinsics = vga();
+  ro.camera = testCamera(hold, azimuth);
+  ro.noise_sigma = 3.0;
+  ro.seed = 7;
+  const vision::ShadedImage img = vision::renderShaded(mesh.positions, mesh.triangles, ro);
+  recognition::CameraObservation ob;
+  ob.image = img.bgr;
+  if (depth) ob.depth = img.depth;
+  ob.intrinsics = ro.intrinsics;
+  ob.hold_camera = ro.camera.toCamera(hold);
+  ob.up_camera = ro.camera.rotation.transpose() * Vec3::UnitZ();
+  return ob;
 }
 
 /// True if `f` throws a RecognitionError with `code` (its message in *msg); false if it throws

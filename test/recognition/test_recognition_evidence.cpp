@@ -44,15 +44,7 @@ class EvidenceTest : public ::testing::Test {
     dir_ = test_support::freshTempDir("th_evidence");
     db_path_ = dir_ + "/db.sqlite";
     db::HangingDrapeDatabase db(db_path_);
-    db::DrapeBuildConfig c;
-    c.textile = test_support::smallTowel();
-    c.spacing = 0.03;
-    c.lattice_spacing = 0.12;
-    c.frame = vision::CanonicalFrame::fromMetric(0.6, 0.6, 64);
-    c.views.count = 12;
-    c.views.step_deg = 30;
-    c.workers = 2;
-    db::DrapeDatabaseBuilder b(db, c);
+    db::DrapeDatabaseBuilder b(db, test_support::smallTowelBuildConfig());
     ASSERT_EQ(b.build().failed_now, 0);
     sims_ = db.simulations(0, db::SimulationStatus::kDone);
     ASSERT_GE(sims_.size(), 4u);
@@ -63,20 +55,7 @@ class EvidenceTest : public ::testing::Test {
   // The stored shape of the first simulation seen by the test camera at a stored azimuth (with its
   // rendered depth if `depth`).
   static CameraObservation observation(double azimuth = 60.0, bool depth = false) {
-    const Vec3 hold = mesh_.positions.segment<3>(3 * mesh_.held_particle);
-    vision::ShadedRenderOptions ro;
-    ro.intrinsics = vga();
-    ro.camera = test_support::testCamera(hold, azimuth);
-    ro.noise_sigma = 3.0;
-    ro.seed = 7;
-    const vision::ShadedImage img = vision::renderShaded(mesh_.positions, mesh_.triangles, ro);
-    CameraObservation ob;
-    ob.image = img.bgr;
-    if (depth) ob.depth = img.depth;
-    ob.intrinsics = ro.intrinsics;
-    ob.hold_camera = ro.camera.toCamera(hold);
-    ob.up_camera = ro.camera.rotation.transpose() * Vec3::UnitZ();
-    return ob;
+    return test_support::renderedObservation(mesh_, azimuth, depth);
   }
 
   static std::string dir_, db_path_;
