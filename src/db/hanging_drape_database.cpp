@@ -530,7 +530,9 @@ std::size_t HangingDrapeDatabase::storeResults(const std::vector<SimulationResul
 void HangingDrapeDatabase::notifyReaders() {
   // Delivered when the caller's transaction commits, never if it rolls back (database_change_watcher.h).
   if (conn_->dialect() != SqlDialect::kPostgres) return;  // SQLite readers poll data_version
-  SqlStatement st = conn_->prepare("SELECT pg_notify(?, '')");
+  // The payload names the schema: listeners of other drape databases in the same server database (other
+  // schemas) ignore it.
+  SqlStatement st = conn_->prepare("SELECT pg_notify(?, current_schema())");
   st.bind(1, std::string(kDrapeDatabaseChannel));
   st.run();
 }

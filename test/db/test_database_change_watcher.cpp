@@ -28,6 +28,14 @@ TEST(DatabaseChangeWatcher, ReportsAnotherHandlesCommittedResultsOnce) {
   c.views.step_deg = 90;
   c.workers = 1;
   {
+    // Another drape database (another file; on PostgreSQL another schema of the same server database,
+    // whose notifications share the channel) changes: not ours.
+    test_support::TestDatabase other_db("watcher_other");
+    HangingDrapeDatabase other(other_db.path());
+    ASSERT_EQ(DrapeDatabaseBuilder(other, c).build().failed_now, 0);
+    EXPECT_FALSE(watcher.waitForChange(300)) << "another database's change was reported";
+  }
+  {
     HangingDrapeDatabase writer(t.path());
     ASSERT_EQ(DrapeDatabaseBuilder(writer, c).build().failed_now, 0);
   }

@@ -1,7 +1,7 @@
 // Tells a reader (the recognizer) that a drape database may have changed, without it having to reload
-// on a timer: on PostgreSQL through LISTEN/NOTIFY (writers notify channel kDrapeDatabaseChannel in the
-// transaction that stores results or swaps a generation, so the notification arrives with the commit,
-// from any machine); on an SQLite file by polling `PRAGMA data_version`, which changes whenever another
+// on a timer: on PostgreSQL through LISTEN/NOTIFY (writers notify channel kDrapeDatabaseChannel, with their
+// schema as the payload, in the transaction that stores results or swaps a generation, so the notification
+// arrives with the commit, from any machine; a watcher counts only its own schema's); on an SQLite file by polling `PRAGMA data_version`, which changes whenever another
 // connection commits. "May have changed": the reader decides by its own fingerprint
 // (TextileRecognizer::reloadIfChanged). ROS-free. docs/database.md, "Readers and change notification".
 #pragma once
