@@ -418,11 +418,12 @@ DrapeDatabaseBuilder::DrapeDatabaseBuilder(DrapeBuildConfig config) : config_(st
     }
 }
 
-bool DrapeDatabaseBuilder::claimRow(std::int64_t id) {
+bool DrapeDatabaseBuilder::claimRow(std::int64_t id, SimulationStatus* status) {
   HangingDrapeDatabase& db = database();
   if (db.claimSimulation(id, claim_owner_, config_.claim_lease_s)) return true;
   // Held by a builder of this machine that died (a crash, SIGKILL): take the row over at once.
   const HangingDrapeDatabase::ClaimState s = db.claimState(id);
+  *status = s.status;
   return s.status == SimulationStatus::kPending && ownerIsDeadHere(s.claimed_by) &&
          db.claimSimulation(id, claim_owner_, config_.claim_lease_s, s.claimed_by);
 }
@@ -578,8 +579,9 @@ DrapeBuildReport DrapeDatabaseBuilder::buildPass(int corner, const std::vector<P
         // A job another builder holds is set aside and looked at again once the queue is empty: it ends
         // there (done or failed), or its lease runs out and it is taken over here.
         const std::int64_t key = claimKey(*job);
-        if (key != 0 && !claimRow(key)) {
-          const bool pending = database().claimState(key).status == SimulationStatus::kPending;
+        SimulationStatus status = SimulationStatus::kPending;
+        if (key != 0 && !claimRow(key, &status)) {
+          const bool pending = status == SimulationStatus::kPending;
           {
             std::lock_guard<std::mutex> lock(mu);
             if (pending) {

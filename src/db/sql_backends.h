@@ -9,17 +9,12 @@
 namespace textile_handling {
 namespace db {
 
-class SqliteConnection;
-
 namespace internal {
 
 /// An SQLite file: foreign keys on, the busy timeout set, the file created only with options.create.
 std::unique_ptr<SqlConnection> openSqliteBackend(const std::string& path, const SqlOpenOptions& options);
 /// A PostgreSQL server: read-only sessions when options.read_only, lock waits bounded by the busy timeout.
 std::unique_ptr<SqlConnection> openPostgresBackend(const std::string& url, const SqlOpenOptions& options);
-/// The SQLite connection under an SQLite backend (nullptr for any other backend): for the few operations
-/// only SQLite has (checkpoints, PRAGMAs in tests).
-SqliteConnection* sqliteConnectionOf(SqlConnection& conn);
 
 }  // namespace internal
 }  // namespace db

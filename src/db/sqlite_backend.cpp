@@ -51,7 +51,6 @@ class SqliteBackend final : public SqlConnection {
   void beginWrite() override { conn_.exec("BEGIN IMMEDIATE"); }
   void commit() override { conn_.exec("COMMIT"); }
   void rollback() override { conn_.exec("ROLLBACK"); }
-  SqliteConnection& raw() { return conn_; }
 
  private:
   SqliteConnection conn_;
@@ -61,11 +60,6 @@ class SqliteBackend final : public SqlConnection {
 
 std::unique_ptr<SqlConnection> openSqliteBackend(const std::string& path, const SqlOpenOptions& options) {
   return std::make_unique<SqliteBackend>(path, options);
-}
-
-SqliteConnection* sqliteConnectionOf(SqlConnection& conn) {
-  auto* s = dynamic_cast<SqliteBackend*>(&conn);
-  return s ? &s->raw() : nullptr;
 }
 
 }  // namespace internal

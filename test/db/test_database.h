@@ -68,6 +68,11 @@ class ThrowawayPostgres {
   std::string url_, dir_, error_;
 };
 
+/// The URL of schema `schema` on the server of `server_url` (libpq's `options=-csearch_path=`).
+inline std::string schemaUrl(const std::string& server_url, const std::string& schema) {
+  return server_url + (server_url.find('?') == std::string::npos ? "?" : "&") + "options=-csearch_path%3D" + schema;
+}
+
 /// The database setting (file path or URL) of one test's database, empty and removed again afterwards.
 class TestDatabase {
  public:
@@ -80,7 +85,7 @@ class TestDatabase {
     }
     server_ = ThrowawayPostgres::url();
     db::PgConnection(server_).exec("DROP SCHEMA IF EXISTS " + schema_ + " CASCADE; CREATE SCHEMA " + schema_);
-    url_ = server_ + (server_.find('?') == std::string::npos ? "?" : "&") + "options=-csearch_path%3D" + schema_;
+    url_ = schemaUrl(server_, schema_);
   }
   ~TestDatabase() {
     if (schema_.empty()) return;

@@ -1,6 +1,6 @@
 // The libpq wrappers (db/postgres_connection.h) against a real PostgreSQL server: the one named by
 // TH_TEST_POSTGRES_URL (scripts/test.sh starts one for the whole run), else a throw-away server this
-// test starts itself with scripts/throwaway_postgres.sh. No server is a failure, not a skip: CI installs
+// test starts itself (test_database.h, ThrowawayPostgres). No server is a failure, not a skip: CI installs
 // PostgreSQL (scripts/setup.sh). Each test works in a schema of its own, so runs can share a server.
 #include <gtest/gtest.h>
 
@@ -15,6 +15,7 @@
 
 #include "../test_support.h"
 #include "../tools/tool_process.h"
+#include "test_database.h"
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/db/postgres_connection.h"
 
@@ -36,32 +37,12 @@ const std::string kScript = std::string(TEXTILE_HANDLING_SOURCE_DIR) + "/scripts
 
 class PostgresConnectionTest : public ::testing::Test {
  protected:
-  static void SetUpTestSuite() {
-    const char* env = std::getenv("TH_TEST_POSTGRES_URL");
-    if (env && *env) {
-      url_ = env;
-      return;
-    }
-    server_dir_ = test_support::freshTempDir("th_pg_connection");
-    bool ok = false;
-    url_ = runServerScript({kScript, "start", server_dir_}, &ok);
-    if (!ok) {
-      start_error_ = "throwaway_postgres.sh start failed: " + url_;
-      url_.clear();
-    }
-  }
-  static void TearDownTestSuite() {
-    if (!server_dir_.empty() && !url_.empty()) {
-      bool ok = false;
-      runServerScript({kScript, "stop", server_dir_}, &ok);
-    }
-    if (!server_dir_.empty()) {
-      std::error_code ec;
-      std::filesystem::remove_all(server_dir_, ec);
-    }
-  }
   void SetUp() override {
-    ASSERT_FALSE(url_.empty()) << start_error_;
+    try {
+      url_ = test_support::ThrowawayPostgres::url();
+    } catch (const std::exception& e) {
+      FAIL() << e.what();
+    }
     schema_ = "t_" + std::to_string(::getpid()) + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name();
     for (char& c : schema_) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
     conn_ = std::make_unique<PgConnection>(url_);
@@ -83,12 +64,11 @@ class PostgresConnectionTest : public ::testing::Test {
     return c;
   }
 
-  static std::string url_, server_dir_, start_error_;
+  std::string url_;
   std::string schema_;
   std::unique_ptr<PgConnection> conn_;
 };
 
-std::string PostgresConnectionTest::url_, PostgresConnectionTest::server_dir_, PostgresConnectionTest::start_error_;
 
 }  // namespace
 

@@ -25,7 +25,7 @@ TEST(StorageBackends, StoreIdenticalShapesAndRecogniseAlike) {
   const std::string server = test_support::ThrowawayPostgres::url();
   const std::string schema = "t" + std::to_string(::getpid()) + "_backends_agree";
   db::PgConnection(server).exec("DROP SCHEMA IF EXISTS " + schema + " CASCADE; CREATE SCHEMA " + schema);
-  const std::string url = server + (server.find('?') == std::string::npos ? "?" : "&") + "options=-csearch_path%3D" + schema;
+  const std::string url = test_support::schemaUrl(server, schema);
   {
     db::HangingDrapeDatabase sqlite(file.path()), postgres(url);
     ASSERT_EQ(db::DrapeDatabaseBuilder(sqlite, test_support::smallTowelBuildConfig()).build().failed_now, 0);

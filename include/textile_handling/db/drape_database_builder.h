@@ -269,8 +269,9 @@ class DrapeDatabaseBuilder {
   std::pair<std::int64_t, std::int64_t> targetTextile();
 
   HangingDrapeDatabase& database() const;  ///< throws InvalidInputError for a simulate-only builder
-  /// Claims row `id` for this builder, also when a dead builder of this machine holds it.
-  bool claimRow(std::int64_t id);
+  /// Claims row `id` for this builder, also when a dead builder of this machine holds it. When the claim
+  /// fails, *status is the row's status as read (pending: held by a live builder).
+  bool claimRow(std::int64_t id, SimulationStatus* status);
 
   HangingDrapeDatabase* db_ = nullptr;
   DrapeBuildConfig config_;
