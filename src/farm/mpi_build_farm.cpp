@@ -179,6 +179,15 @@ MpiSession::MpiSession(int* argc, char*** argv) {
 
 MpiSession::~MpiSession() { MPI_Finalize(); }
 
+std::string MpiSession::broadcastText(const std::string& text) const {
+  std::uint64_t size = rank_ == 0 ? text.size() : 0;
+  MPI_Bcast(&size, 1, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+  if (size > (std::uint64_t{1} << 30)) throw std::runtime_error("broadcastText: more than 1 GiB");
+  std::string out = rank_ == 0 ? text : std::string(size, '\0');
+  if (size > 0) MPI_Bcast(out.data(), static_cast<int>(size), MPI_CHAR, 0, MPI_COMM_WORLD);
+  return out;
+}
+
 void MpiSession::abort(int exit_code) const {
   MPI_Abort(MPI_COMM_WORLD, exit_code);
   std::_Exit(exit_code);  // MPI_Abort does not return; in case an implementation does

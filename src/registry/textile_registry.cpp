@@ -1,12 +1,18 @@
 #include "textile_handling/registry/textile_registry.h"
 #include "textile_handling/db/postgres_connection.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 #include "textile_handling/db/database_errors.h"
+#include "textile_handling/db/drape_build_job.h"
+#include "textile_handling/registry/external_build_command.h"
 #include "textile_handling/sim/output_files.h"
 #include "textile_handling/vision/silhouette_renderer.h"
 
@@ -27,6 +33,58 @@ void checkSpacing(Real v, const char* what) {
   if (!std::isfinite(v) || v < 0) throw InvalidInputError(std::string(what) + " must be finite and >= 0 (0 = default)");
 }
 
+// The database members every build makes (the base alone by default).
+std::vector<db::DrapeMemberSpec> buildMembers(const RegistryOptions& o) {
+  return o.members.empty() ? db::drapeMembersByName("base") : o.members;
+}
+
+// The value of "key=" in a record line's words ("th-build-progress done=3 total=9 ..."); false if absent.
+bool recordValue(const std::string& line, const std::string& key, double* value) {
+  const std::string k = " " + key + "=";
+  const auto at = line.find(k);
+  if (at == std::string::npos) return false;
+  char* end = nullptr;
+  const char* begin = line.c_str() + at + k.size();
+  *value = std::strtod(begin, &end);
+  return end != begin && std::isfinite(*value);
+}
+
+// An external build's progress line (drape_db build --progress-records) as the builder's progress.
+bool parseProgressRecord(const std::string& line, const std::function<void(const db::DrapeBuildProgress&)>& on_progress) {
+  if (line.rfind("th-build-progress ", 0) != 0) return false;
+  double done = 0, total = 0, eta = -1;
+  if (!recordValue(line, "done", &done) || !recordValue(line, "total", &total)) return false;
+  recordValue(line, "eta_s", &eta);
+  db::DrapeBuildProgress p;
+  p.done = static_cast<int>(done);
+  p.total = static_cast<int>(total);
+  p.eta_s = eta;
+  on_progress(p);
+  return true;
+}
+
+// An external build's report line of one member, added to *total.
+bool parseReportRecord(const std::string& line, db::DrapeBuildReport* total) {
+  if (line.rfind("th-build-report ", 0) != 0) return false;
+  double v[8];
+  const char* keys[8] = {"generation", "planned", "to_simulate", "already_done", "simulated", "failed", "derived", "done_elsewhere"};
+  for (int k = 0; k < 8; ++k)
+    if (!recordValue(line, keys[k], &v[k])) return false;
+  db::DrapeBuildReport r;
+  r.generation = static_cast<std::int64_t>(v[0]);
+  r.planned = static_cast<int>(v[1]);
+  r.to_simulate = static_cast<int>(v[2]);
+  r.already_done = static_cast<int>(v[3]);
+  r.simulated_now = static_cast<int>(v[4]);
+  r.failed_now = static_cast<int>(v[5]);
+  r.derived_now = static_cast<int>(v[6]);
+  r.done_elsewhere = static_cast<int>(v[7]);
+  const std::int64_t textile = total->textile_id;
+  db::accumulateBuildReport(*total, r);
+  total->textile_id = textile;  // the report line names no textile
+  return true;
+}
+
 }  // namespace
 
 TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions options, ProgressCallback on_progress,
@@ -43,6 +101,16 @@ TextileRegistry::TextileRegistry(std::string database_path, RegistryOptions opti
     // 0755 whatever the process umask (a node started under umask 000 must not make world-writable
     // directories).
     if (!parent.empty()) createDirectories(parent.string(), 0755);
+  }
+  if (!options_.build_command.empty()) {
+    if (options_.build_command.front().empty()) throw std::invalid_argument("TextileRegistry: empty build command");
+    if (!(options_.build_stop_grace_s >= 0 && options_.build_stop_grace_s <= 3600))
+      throw std::invalid_argument("TextileRegistry: build_stop_grace_s must be in [0, 3600]");
+    job_dir_ = options_.build_job_dir.empty()
+                   ? (std::filesystem::temp_directory_path() / ("textile_handling_build_jobs_" + std::to_string(::getuid()))).string()
+                   : options_.build_job_dir;
+    createDirectories(job_dir_, 0700);
+    checkWritableDirectory(job_dir_);
   }
   db_ = std::make_unique<db::HangingDrapeDatabase>(path_);
   worker_ = std::thread([this] { workerLoop(); });
@@ -333,8 +401,7 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
     if (job.stage_new)
       wdb.stageGeneration(job.textile_id, job.config.material, job.request_spacing, job.request_model);
     if (job.staged) job.config.staged_textile_id = job.textile_id;
-    job.config.should_stop = [this] { return stop_requested_.load(); };
-    job.config.on_progress = [&](const db::DrapeBuildProgress& progress) {
+    const BuildProgressFn on_progress = [&](const db::DrapeBuildProgress& progress) {
       BuildProgressEvent p = e;
       p.done = progress.done;
       p.total = progress.total;
@@ -342,11 +409,8 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
       p.eta_s = std::max(0.0, progress.eta_s);  // the message's 0 = unknown or done
       emit(p);
     };
-    // One build per database member (the base alone by default); the report sums them.
-    const std::vector<db::DrapeMemberSpec> members =
-        options_.members.empty() ? db::drapeMembersByName("base") : options_.members;
-    db::DrapeBuildReport rep;
-    for (const db::DrapeBuildReport& r : db::buildDrapeMembers(wdb, job.config, members)) db::accumulateBuildReport(rep, r);
+    const db::DrapeBuildReport rep =
+        options_.build_command.empty() ? buildHere(wdb, job, on_progress) : buildWithCommand(job, on_progress);
     e.done = rep.already_done + rep.simulated_now;
     e.total = rep.to_simulate;
     e.failed = rep.failed_now;
@@ -371,11 +435,63 @@ void TextileRegistry::runJob(Job& job, int queued_behind) {
   if (!job.staged && on_changed_) on_changed_(job.textile_id);
 }
 
+db::DrapeBuildReport TextileRegistry::buildHere(db::HangingDrapeDatabase& wdb, Job& job, const BuildProgressFn& on_progress) {
+  job.config.should_stop = [this] { return stop_requested_.load(); };
+  job.config.on_progress = on_progress;
+  // One build per database member (the base alone by default); the report sums them.
+  db::DrapeBuildReport rep;
+  for (const db::DrapeBuildReport& r : db::buildDrapeMembers(wdb, job.config, buildMembers(options_)))
+    db::accumulateBuildReport(rep, r);
+  return rep;
+}
+
+db::DrapeBuildReport TextileRegistry::buildWithCommand(const Job& job, const BuildProgressFn& on_progress) {
+  db::DrapeBuildJob file;
+  file.config = job.config;
+  file.members.clear();
+  for (const db::DrapeMemberSpec& m : buildMembers(options_)) file.members += (file.members.empty() ? "" : ",") + m.name;
+  const std::string job_path =
+      job_dir_ + "/textile_" + std::to_string(job.textile_id) + "_" + std::to_string(++job_files_written_) + ".yaml";
+  db::saveDrapeBuildJob(file, job_path);
+  std::vector<std::string> argv = options_.build_command;
+  for (const char* word : {"--db", "", "--job", "", "--progress-records"}) argv.emplace_back(word);
+  argv[argv.size() - 4] = path_;
+  argv[argv.size() - 2] = job_path;
+
+  db::DrapeBuildReport rep;
+  int reports = 0;
+  const auto on_line = [&](const std::string& line) {
+    if (parseProgressRecord(line, on_progress)) return;
+    if (parseReportRecord(line, &rep)) {
+      ++reports;
+      return;
+    }
+    // drape_db's line for a failed simulation (build_progress_printer.cpp): kept for the job's message.
+    static const std::string kFailed = "drape_db: simulation ";
+    if (line.rfind(kFailed, 0) == 0 && line.find(" failed: ") != std::string::npos)
+      rep.failures.push_back(line.substr(std::string("drape_db: ").size()));
+  };
+  const ExternalCommandOutcome outcome =
+      runExternalCommand(argv, on_line, [this] { return stop_requested_.load(); }, options_.build_stop_grace_s);
+  std::remove(job_path.c_str());
+  if (!outcome.started) throw std::runtime_error("database build command: " + outcome.error);
+  if (outcome.stopped) return rep;  // resumable: the next build of these settings continues it
+  std::string tail;
+  for (std::size_t k = outcome.tail.size() > 3 ? outcome.tail.size() - 3 : 0; k < outcome.tail.size(); ++k)
+    tail += (tail.empty() ? "" : " | ") + outcome.tail[k];
+  if (!outcome.exited || (outcome.exit_code != 0 && outcome.exit_code != 4))
+    throw std::runtime_error("database build command ended with " + describeOutcome(outcome) +
+                             (tail.empty() ? std::string() : ": " + tail));
+  if (reports == 0)
+    throw std::runtime_error("database build command printed no build report (is it `drape_db build`?): " + tail);
+  return rep;
+}
+
 bool TextileRegistry::promoteIfComplete(db::HangingDrapeDatabase& wdb, const Job& job, const db::DrapeBuildReport& rep,
                                         std::string* outcome) {
   try {
     std::vector<std::string> texts;  // every member's rows must be complete enough
-    for (const db::DrapeMemberSpec& m : options_.members.empty() ? db::drapeMembersByName("base") : options_.members)
+    for (const db::DrapeMemberSpec& m : buildMembers(options_))
       for (const std::string& t : db::DrapeDatabaseBuilder::parameterTexts(db::memberBuildConfig(job.config, m)))
         texts.push_back(t);
     const db::PromotionReport p =

@@ -46,6 +46,12 @@ BuildProgressPrinter::BuildProgressPrinter(std::ostream& out, bool terminal) : o
 
 BuildProgressPrinter BuildProgressPrinter::forStderr() { return BuildProgressPrinter(std::cerr, isatty(fileno(stderr)) != 0); }
 
+BuildProgressPrinter BuildProgressPrinter::recordsOnStderr() {
+  BuildProgressPrinter p(std::cerr, false);
+  p.records_ = true;
+  return p;
+}
+
 void BuildProgressPrinter::attach(db::DrapeBuildConfig& config) {
   config.on_pass_start = [this](const db::DrapeBuildPass& p) { passStarted(p); };
   config.on_progress = [this](const db::DrapeBuildProgress& p) { progress(p); };
@@ -60,7 +66,7 @@ void BuildProgressPrinter::passStarted(const db::DrapeBuildPass& p) {
   eta_s_ = -1;
   failed_ = 0;
   last_printed_ = -1;
-  if (p.to_run == 0) return;  // nothing to run: no header, no bar
+  if (p.to_run == 0 || records_) return;  // nothing to run: no header, no bar
   out_ << "drape_db: " << p.textile
        << (p.bracket_corner >= 0
                ? " (bracket corner " + std::to_string(p.bracket_corner) + " of the hold points' grid cells)"
@@ -74,6 +80,13 @@ void BuildProgressPrinter::passStarted(const db::DrapeBuildPass& p) {
 void BuildProgressPrinter::progress(const db::DrapeBuildProgress& p) {
   done_ = p.done;
   eta_s_ = p.eta_s;
+  if (records_) {
+    // One write per line, so that no other output (or mpirun's forwarding) splits it.
+    out_ << ("th-build-progress done=" + std::to_string(p.done) + " total=" + std::to_string(p.total) +
+             " eta_s=" + std::to_string(p.eta_s) + "\n")
+         << std::flush;
+    return;
+  }
   printBar(false);
 }
 
@@ -84,7 +97,7 @@ void BuildProgressPrinter::failed(const db::DrapeBuildFailure& f) {
 }
 
 void BuildProgressPrinter::passEnded(const db::DrapeBuildPass& p) {
-  if (p.to_run > 0) printBar(true);
+  if (p.to_run > 0 && !records_) printBar(true);
 }
 
 void BuildProgressPrinter::printBar(bool final_line) {

@@ -26,6 +26,10 @@ class BuildProgressPrinter {
   BuildProgressPrinter(std::ostream& out, bool terminal);
   /// A printer on std::cerr, redrawing in place when stderr is a terminal.
   static BuildProgressPrinter forStderr();
+  /// A printer of machine-readable records on std::cerr, one line per finished simulation:
+  /// "th-build-progress done=D total=T eta_s=E" (DrapeBuildProgress's counts of the pass; what
+  /// TextileRegistry reads from an external build, docs/build_farm.md). Failures print as in forStderr().
+  static BuildProgressPrinter recordsOnStderr();
 
   /// Sets config's on_pass_start, on_progress, on_failure and on_pass_end to this printer (replacing
   /// any set before).
@@ -41,6 +45,7 @@ class BuildProgressPrinter {
 
   std::ostream& out_;
   bool terminal_;
+  bool records_ = false;
   db::DrapeBuildPass pass_;
   std::chrono::steady_clock::time_point started_;
   int done_ = 0;          ///< simulated rows of the pass done or failed, including those done before it

@@ -4,6 +4,8 @@
 //   drape_db build  --db DB --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
 //                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
 //                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N] [--question Q]]
+//                   [--mpi] [--claim-lease S] [--progress-records]
+//   drape_db build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--progress-records]
 //   drape_db list   --db DB [--simulations] [--textile NAME] [--check]
 //   drape_db query  --db DB (--mask PNG | --image PNG) --hold-pixel U,V --metres-per-pixel M [--top K]
 //                   [--second-mask PNG | --second-image PNG, --second-hold-pixel U,V, --second-metres-per-pixel M,
@@ -23,6 +25,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <iomanip>
 #include <iostream>
 #include <map>
@@ -37,6 +40,7 @@
 #include "build_progress_printer.h"
 #include "textile_handling/bench/thesis_benchmark.h"
 #include "textile_handling/db/automatic_configuration.h"
+#include "textile_handling/db/drape_build_job.h"
 #include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
 #include "textile_handling/db/drape_export.h"
@@ -45,6 +49,7 @@
 #include "textile_handling/db/hanging_drape_database.h"
 #include "textile_handling/farm/mpi_build_farm.h"
 #include "textile_handling/sim/sim_errors.h"
+#include "textile_handling/sim/text_input.h"
 #include "textile_handling/sim/thread_limit.h"
 #include "textile_handling/vision/image_header.h"
 #include "textile_handling/vision/mask_cv.h"
@@ -89,6 +94,8 @@ const char* kUsage =
     "         [--auto [--auto-spacings D,D,..] [--auto-tolerance M=0.03] [--auto-min-iou X=0.85]\n"
     "                 [--auto-samples N=3] [--question none|pull_out|sliding|tearing]]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
+    "         [--mpi] [--claim-lease S=60] [--progress-records]\n"
+    "  build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--quiet] [--progress-records]\n"
     "  list   --db DB [--simulations] [--textile NAME] [--check]\n"
     "  query  --db DB (--mask PNG | --image PNG [--background B,G,R] [--threshold T])\n"
     "         --hold-pixel U,V --metres-per-pixel M [--canonical] [--top K=5] [--textile NAME]\n"
@@ -216,8 +223,51 @@ std::string fixed(double v, int p) {
 
 // ---- build ------------------------------------------------------------------------------------
 
-int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r);
-int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<DrapeMemberSpec>& members);
+int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r,
+                     bool records);
+
+// What one `drape_db build` builds: a configuration and its database members.
+struct BuildRequest {
+  DrapeBuildConfig config;
+  std::vector<DrapeMemberSpec> members;
+};
+int buildHere(const Args& a, BuildRequest request);
+int buildOnFarm(const Args& a, const std::function<BuildRequest(const farm::MpiSession&)>& request);
+
+// The progress printer of a build: machine-readable records (--progress-records) or the bar.
+tools::BuildProgressPrinter progressPrinter(const Args& a) {
+  return a.has("--progress-records") ? tools::BuildProgressPrinter::recordsOnStderr()
+                                     : tools::BuildProgressPrinter::forStderr();
+}
+
+// `build --job FILE`: the build a TextileRegistry handed over (drape_build_job.h). The file holds the
+// textile, material, members and every simulation setting; the command line adds only where and how it
+// runs. On a farm, rank 0 reads the file and sends its text to the other ranks, so only rank 0's machine
+// needs it.
+int cmdBuildJob(const Args& a) {
+  try {
+    a.allowOnly({"--db", "--job", "--mpi", "--claim-lease", "--threads", "--sim-threads", "--quiet", "--progress-records"});
+  } catch (const UsageError& e) {
+    throw UsageError(std::string(e.what()) + " with --job (the job file holds the textile and every build setting)");
+  }
+  const auto fromJob = [&a](const DrapeBuildJob& job) {
+    BuildRequest r{job.config, drapeMembersByName(job.members)};
+    if (a.has("--threads")) r.config.workers = threadCount(a.get("--threads"), "--threads");
+    if (a.has("--sim-threads")) r.config.threads_per_simulation = threadCount(a.get("--sim-threads"), "--sim-threads");
+    if (a.has("--claim-lease")) r.config.claim_lease_s = numberIn(a.get("--claim-lease"), 3, 1e6, "--claim-lease");
+    return r;
+  };
+  if (!a.has("--mpi")) return buildHere(a, fromJob(loadDrapeBuildJob(a.require("--job"))));
+  return buildOnFarm(a, [&](const farm::MpiSession& session) {
+    std::string text;
+    if (session.rank() == 0) {
+      std::string error;
+      if (!readBoundedTextFile(a.require("--job"), kMaxBuildJobBytes, &text, &error))
+        throw InvalidInputError("build job '" + a.get("--job") + "': " + error);
+    }
+    return fromJob(parseDrapeBuildJob(session.broadcastText(text)));
+  });
+}
 
 // --auto: model, spacing, integrator and policy from the resolution search on a spread sample of the build's
 // hold points (automatic_configuration.h); the choice and its evidence are printed and go into the build's
@@ -270,7 +320,8 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
 }
 
 int cmdBuild(const Args& a) {
-  a.allowOnly({"--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
+  if (a.has("--job")) return cmdBuildJob(a);
+  a.allowOnly({"--progress-records", "--db", "--textile", "--spacing", "--lattice", "--grid", "--hold", "--material", "--name", "--threads",
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
@@ -399,9 +450,15 @@ int cmdBuild(const Args& a) {
   if (a.has("--auto")) chooseAutomatically(a, sym, c);
 
   if (a.has("--claim-lease")) c.claim_lease_s = numberIn(a.get("--claim-lease"), 3, 1e6, "--claim-lease");
-  if (a.has("--mpi")) return buildOnFarm(a, c, members);
+  if (a.has("--mpi")) return buildOnFarm(a, [&](const farm::MpiSession&) { return BuildRequest{c, members}; });
+  return buildHere(a, {c, members});
+}
 
-  tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
+// A build in this process, member after member.
+int buildHere(const Args& a, BuildRequest request) {
+  DrapeBuildConfig& c = request.config;
+  const std::vector<DrapeMemberSpec>& members = request.members;
+  tools::BuildProgressPrinter progress = progressPrinter(a);
   if (!a.has("--quiet")) progress.attach(c);
   HangingDrapeDatabase db(a.require("--db"));
   int status = kExitOk;
@@ -409,7 +466,7 @@ int cmdBuild(const Args& a) {
     if (members.size() > 1 || m.name != "base") std::cout << "member " << m.name << ": " << m.description << "\n";
     const DrapeBuildConfig mc = memberBuildConfig(c, m);
     DrapeDatabaseBuilder builder(db, mc);
-    if (printBuildReport(db, mc, builder.build()) != kExitOk) status = kExitFailedSims;
+    if (printBuildReport(db, mc, builder.build(), a.has("--progress-records")) != kExitOk) status = kExitFailedSims;
   }
   if (members.size() > 1) {
     std::cout << "finished rest shapes per member:";
@@ -423,18 +480,12 @@ int cmdBuild(const Args& a) {
 
 // `build --mpi`: the same build on every rank of the MPI job (docs/build_farm.md). Rank 0 prints; a
 // fatal error on any rank ends the whole job.
-int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<DrapeMemberSpec>& members) {
+int buildOnFarm(const Args& a, const std::function<BuildRequest(const farm::MpiSession&)>& request) {
   farm::MpiSession session(nullptr, nullptr);
   farm::FarmBuildInput in;
   in.database = a.require("--db");
-  for (const DrapeMemberSpec& m : members) {
-    DrapeBuildConfig mc = memberBuildConfig(c, m);
-    // A rank runs one simulation at a time unless --threads says otherwise (PostgreSQL: every rank builds).
-    if (!a.has("--threads")) mc.workers = 1;
-    if (!a.has("--sim-threads")) mc.threads_per_simulation = 1;
-    in.members.push_back(mc);
-  }
-  tools::BuildProgressPrinter progress = tools::BuildProgressPrinter::forStderr();
+  std::vector<DrapeMemberSpec> members;
+  tools::BuildProgressPrinter progress = progressPrinter(a);
   in.on_member_start = [&](std::size_t k, DrapeBuildConfig& mc) {
     if (members.size() > 1 || members[k].name != "base")
       std::cout << "member " << members[k].name << ": " << members[k].description << "\n";
@@ -442,6 +493,15 @@ int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<Drap
   };
   farm::FarmBuildResult r;
   try {
+    const BuildRequest req = request(session);
+    members = req.members;
+    for (const DrapeMemberSpec& m : members) {
+      DrapeBuildConfig mc = memberBuildConfig(req.config, m);
+      // A rank runs one simulation at a time unless --threads says otherwise (PostgreSQL: every rank builds).
+      if (!a.has("--threads")) mc.workers = 1;
+      if (!a.has("--sim-threads")) mc.threads_per_simulation = 1;
+      in.members.push_back(mc);
+    }
     r = farm::runFarmBuild(session, in);
   } catch (const std::exception& e) {
     std::cerr << "drape_db build (rank " << session.rank() << " of " << session.size() << "): " << e.what()
@@ -463,12 +523,25 @@ int buildOnFarm(const Args& a, const DrapeBuildConfig& c, const std::vector<Drap
   }());
   int status = kExitOk;
   for (std::size_t k = 0; k < r.reports.size(); ++k)
-    if (printBuildReport(db, in.members[k], r.reports[k]) != kExitOk) status = kExitFailedSims;
+    if (printBuildReport(db, in.members[k], r.reports[k], a.has("--progress-records")) != kExitOk)
+      status = kExitFailedSims;
   return status;
 }
 
 // The summary of one build (one member) on stdout; kExitFailedSims if rows of these settings failed.
-int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r) {
+// With `records`, first a machine-readable line on stderr (what TextileRegistry reads, docs/build_farm.md):
+// "th-build-report generation=G planned=P to_simulate=T already_done=A simulated=S failed=F derived=X
+// done_elsewhere=E".
+int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r,
+                     bool records) {
+  if (records) {  // one write, so that no other output (or mpirun's forwarding) splits the line
+    std::ostringstream line;
+    line << "th-build-report generation=" << r.generation << " planned=" << r.planned << " to_simulate=" << r.to_simulate
+         << " already_done=" << r.already_done << " simulated=" << r.simulated_now << " failed=" << r.failed_now
+         << " derived=" << r.derived_now << " done_elsewhere=" << r.done_elsewhere << "\n";
+    std::cout.flush();
+    std::cerr << line.str() << std::flush;
+  }
   std::cout << "textile '" << c.textile.name << "' (id " << r.textile_id << "), symmetry " << r.symmetry
             << (r.symmetric_grid ? "" : " (grid not symmetric: every hold point simulated)") << "\n"
             << "hold points: " << r.planned << " (" << r.to_simulate << " simulated, " << r.planned - r.to_simulate
@@ -482,7 +555,8 @@ int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, 
   const std::vector<std::string> params = DrapeDatabaseBuilder::parameterTexts(c);
   int plan_done = 0, plan_failed = 0;
   for (const SimulationRecord& s : db.simulations(r.textile_id)) {
-    if (std::find(params.begin(), params.end(), s.parameters) == params.end()) continue;
+    // This build's generation only (a rebuild into a staged generation has the active one's settings).
+    if (s.generation != r.generation || std::find(params.begin(), params.end(), s.parameters) == params.end()) continue;
     plan_done += s.status == SimulationStatus::kDone;
     plan_failed += s.status == SimulationStatus::kFailed;
   }
@@ -770,7 +844,7 @@ int main(int argc, char** argv) {
   try {
     if (cmd == "build")
       return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--auto", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
-                                             "--self-collision", "--mpi"}));
+                                             "--self-collision", "--mpi", "--progress-records"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));
     if (cmd == "export") return cmdExport(Args(argc, argv, 2, {}));

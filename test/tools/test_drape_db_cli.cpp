@@ -15,6 +15,7 @@
 
 #include "../recognition/recognition_test_support.h"
 #include "tool_process.h"
+#include "textile_handling/db/drape_build_job.h"
 #include "textile_handling/db/drape_database_builder.h"
 
 using namespace textile_handling;
@@ -123,6 +124,42 @@ TEST_F(DrapeDbCli, UnknownMembersAreRefusedBeforeTheDatabaseIsOpened) {
     expectRefused(r, "--members");
   }
   EXPECT_FALSE(std::filesystem::exists(dir_ + "/never.sqlite"));
+}
+
+TEST_F(DrapeDbCli, AJobFileBuildsItsSettingsAndPrintsRecords) {
+  db::DrapeBuildJob job;
+  job.config.textile = test_support::smallTowel();
+  job.config.textile.name = "job_towel";
+  job.config.spacing = 0.04;
+  job.config.hold_points = {Vec2(0.0, 0.0), Vec2(0.18, 0.0)};
+  job.config.use_symmetry = false;
+  job.config.views.count = 4;
+  job.config.views.step_deg = 90;
+  job.config.workers = 1;
+  const std::string file = dir_ + "/job.yaml", target = dir_ + "/job.sqlite";
+  db::saveDrapeBuildJob(job, file);
+  // Settings come from the file only; a broken file is refused before the database is created.
+  expectRefused(runDrapeDb({"build", "--db", target, "--job", file, "--textile", "towel"}), "--textile");
+  expectRefused(runDrapeDb({"build", "--db", target, "--job", file, "--spacing", "0.02"}), "--spacing");
+  {
+    std::ofstream bad(dir_ + "/bad_job.yaml");
+    bad << tool_process::readAll(file) << "surprise: 1\n";
+  }
+  expectRefused(runDrapeDb({"build", "--db", target, "--job", dir_ + "/bad_job.yaml"}), "surprise");
+  expectRefused(runDrapeDb({"build", "--db", target, "--job", dir_ + "/missing.yaml"}), "missing.yaml");
+  EXPECT_FALSE(std::filesystem::exists(target));
+
+  const ToolRun r = runDrapeDb({"build", "--db", target, "--job", file, "--progress-records"});
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  EXPECT_NE(r.err.find("th-build-progress done=2 total=2"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("th-build-report generation=0 planned=2 to_simulate=2 already_done=0 simulated=2 failed=0"),
+            std::string::npos)
+      << r.err;
+  db::HangingDrapeDatabase database(target);
+  const auto rows = database.simulations(0, db::SimulationStatus::kDone);
+  ASSERT_EQ(rows.size(), 2u);
+  for (const db::SimulationRecord& s : rows)
+    EXPECT_EQ(s.parameters, db::DrapeDatabaseBuilder::parametersText(job.config));
 }
 
 TEST_F(DrapeDbCli, ADamagedStoredViewIsSkippedAndReported) {

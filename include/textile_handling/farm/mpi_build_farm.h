@@ -31,6 +31,9 @@ class MpiSession {
   MpiSession& operator=(const MpiSession&) = delete;
   int rank() const { return rank_; }
   int size() const { return size_; }
+  /// Rank 0's `text` on every rank (the others' argument is ignored); call it on all ranks. For
+  /// input only rank 0's machine has (a build-job file).
+  std::string broadcastText(const std::string& text) const;
   /// Ends every rank of the job at once (after a fatal error on one of them).
   [[noreturn]] void abort(int exit_code) const;
 

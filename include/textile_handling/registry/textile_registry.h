@@ -1,7 +1,8 @@
 // TextileRegistry: the ROS-free core behind the drape_simulator node's register_textile, resimulate and
 // list_textiles services. It validates requests at the boundary (nothing is written for a bad request),
 // stores textiles in the hanging-drape database and runs their database builds on one worker thread,
-// FIFO, reporting progress and database changes through callbacks. See docs/ros.md.
+// FIFO (or hands them to an external command such as an MPI build farm), reporting progress and
+// database changes through callbacks. See docs/ros.md and docs/build_farm.md.
 #pragma once
 
 #include <array>
@@ -62,6 +63,19 @@ struct RegistryOptions {
   /// A resimulation replaces the active entries only if at most this fraction of its simulations
   /// failed (the rest done); otherwise the old entries stay and the new ones are kept staged.
   double max_failed_fraction = 0.05;
+  /// Non-empty: every build runs as this external command instead of on the registry's worker thread
+  /// (docs/build_farm.md, "The drape simulator node on a farm"): the words of a `drape_db build` command
+  /// line without database and job, e.g. {"mpirun", "-np", "4", "--hostfile", "H", "/path/drape_db",
+  /// "build", "--mpi"}. For each job the registry writes a build-job file (db/drape_build_job.h) and
+  /// appends "--db DATABASE --job FILE --progress-records"; it reads the command's progress and report
+  /// lines, and a command that ends otherwise than with exit status 0 or 4 fails the job.
+  std::vector<std::string> build_command;
+  /// Directory of the build-job files (created with mode 0700; each file is removed when its command
+  /// ends); empty = <temporary directory>/textile_handling_build_jobs_<uid>. With a hostfile it must
+  /// be readable on the machine of rank 0.
+  std::string build_job_dir;
+  /// Seconds an external build gets after SIGTERM (the registry stopping) before SIGKILL.
+  double build_stop_grace_s = 10;
 };
 
 struct BuildProgressEvent {
@@ -165,6 +179,12 @@ class TextileRegistry {
   int planHoldPoints(const db::DrapeBuildConfig& config);
   void workerLoop();
   void runJob(Job& job, int queued_behind);
+  using BuildProgressFn = std::function<void(const db::DrapeBuildProgress&)>;
+  /// The job's member builds on this thread, into `wdb`.
+  db::DrapeBuildReport buildHere(db::HangingDrapeDatabase& wdb, Job& job, const BuildProgressFn& on_progress);
+  /// The job's member builds as options_.build_command; throws std::runtime_error if the command cannot
+  /// run or fails.
+  db::DrapeBuildReport buildWithCommand(const Job& job, const BuildProgressFn& on_progress);
   /// Swaps a finished staged build in; false (and why in *outcome) if it is incomplete.
   bool promoteIfComplete(db::HangingDrapeDatabase& wdb, const Job& job, const db::DrapeBuildReport& rep,
                          std::string* outcome);
@@ -180,6 +200,8 @@ class TextileRegistry {
   mutable std::mutex queue_mutex_;
   mutable std::condition_variable queue_cv_;
   std::deque<Job> jobs_;
+  std::string job_dir_;            ///< build-job files of options_.build_command
+  int job_files_written_ = 0;
   bool running_job_ = false;
   bool stop_ = false;
   std::atomic<bool> stop_requested_{false};
