@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <sstream>
 #include <new>
 #include <stdexcept>
 
@@ -31,6 +32,37 @@ int positiveIntParam(ros::NodeHandle& nh, const std::string& name, int fallback)
   nh.param(name, v, fallback);
   if (v < 1) throw std::runtime_error("parameter ~" + name + " must be a positive integer");
   return v;
+}
+
+// ~database_build_command: a string of words separated by spaces (no shell quoting) or a list of words;
+// the word `drape_db` is this package's drape_db, found beside the node's executable.
+std::vector<std::string> buildCommandParam(ros::NodeHandle& pnh) {
+  std::vector<std::string> words;
+  XmlRpc::XmlRpcValue value;
+  if (!pnh.getParam("database_build_command", value)) return words;
+  if (value.getType() == XmlRpc::XmlRpcValue::TypeString) {
+    std::istringstream text(static_cast<std::string>(value));
+    for (std::string w; text >> w;) words.push_back(w);
+  } else if (value.getType() == XmlRpc::XmlRpcValue::TypeArray) {
+    for (int k = 0; k < value.size(); ++k) {
+      if (value[k].getType() != XmlRpc::XmlRpcValue::TypeString)
+        throw std::runtime_error("parameter ~database_build_command: every list entry must be a string");
+      words.push_back(static_cast<std::string>(value[k]));
+    }
+  } else {
+    throw std::runtime_error("parameter ~database_build_command must be a string or a list of strings");
+  }
+  if (words.empty()) return words;
+  // A command that is not a `drape_db build` (or a wrapper of one) fails each job with "printed no build
+  // report" (TextileRegistry), so the node need not guess at wrappers here.
+  const std::string own = packageToolPath("drape_db");
+  for (std::string& w : words)
+    if (w == "drape_db") {
+      if (own.empty())
+        throw std::runtime_error("parameter ~database_build_command: no drape_db beside the node's executable; give its path");
+      w = own;
+    }
+  return words;
 }
 
 }  // namespace
@@ -136,6 +168,10 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   pnh.param("max_failed_fraction", ro.max_failed_fraction, ro.max_failed_fraction);
   if (!(ro.max_failed_fraction >= 0 && ro.max_failed_fraction <= 1))
     throw std::runtime_error("parameter ~max_failed_fraction must be in [0, 1]");
+  // Builds on an external command (an MPI build farm) instead of the node's worker (docs/build_farm.md).
+  ro.build_command = buildCommandParam(pnh);
+  pnh.param<std::string>("database_build_job_dir", ro.build_job_dir, ro.build_job_dir);
+  ro.build_job_dir = expandHome(ro.build_job_dir);
   std::vector<std::string> presets;
   pnh.param("preset_textiles", presets, presets);
   bool build_presets = false;
@@ -180,6 +216,12 @@ DrapeSimulatorNode::DrapeSimulatorNode(ros::NodeHandle& nh, ros::NodeHandle& pnh
   (void)nh;
   ROS_INFO_NAMED("drape_simulator", "ready: database %s, default spacing %.3f m, integrator %s", db_path.c_str(),
                  default_spacing_, default_integrator_.c_str());
+  if (!ro.build_command.empty()) {
+    std::string command;
+    for (const std::string& w : ro.build_command) command += (command.empty() ? "" : " ") + w;
+    ROS_INFO_NAMED("drape_simulator", "database builds run as: %s --db DATABASE --job FILE --progress-records",
+                   command.c_str());
+  }
 }
 
 void DrapeSimulatorNode::publishProgress(const registry::BuildProgressEvent& e) {
