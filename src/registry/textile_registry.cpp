@@ -450,13 +450,12 @@ db::DrapeBuildReport TextileRegistry::buildWithCommand(const Job& job, const Bui
   file.config = job.config;
   file.members.clear();
   for (const db::DrapeMemberSpec& m : buildMembers(options_)) file.members += (file.members.empty() ? "" : ",") + m.name;
-  const std::string job_path =
-      job_dir_ + "/textile_" + std::to_string(job.textile_id) + "_" + std::to_string(++job_files_written_) + ".yaml";
+  // The process id keeps two registries that share the directory (two nodes of one machine) apart.
+  const std::string job_path = job_dir_ + "/textile_" + std::to_string(job.textile_id) + "_" +
+                               std::to_string(::getpid()) + "_" + std::to_string(++job_files_written_) + ".yaml";
   db::saveDrapeBuildJob(file, job_path);
   std::vector<std::string> argv = options_.build_command;
-  for (const char* word : {"--db", "", "--job", "", "--progress-records"}) argv.emplace_back(word);
-  argv[argv.size() - 4] = path_;
-  argv[argv.size() - 2] = job_path;
+  argv.insert(argv.end(), {"--db", path_, "--job", job_path, "--progress-records"});
 
   db::DrapeBuildReport rep;
   int reports = 0;
