@@ -5,7 +5,6 @@
 
 #include <cmath>
 #include <cstdlib>
-#include <sstream>
 #include <new>
 #include <stdexcept>
 
@@ -41,8 +40,7 @@ std::vector<std::string> buildCommandParam(ros::NodeHandle& pnh) {
   XmlRpc::XmlRpcValue value;
   if (!pnh.getParam("database_build_command", value)) return words;
   if (value.getType() == XmlRpc::XmlRpcValue::TypeString) {
-    std::istringstream text(static_cast<std::string>(value));
-    for (std::string w; text >> w;) words.push_back(w);
+    words = splitCommandWords(static_cast<std::string>(value));
   } else if (value.getType() == XmlRpc::XmlRpcValue::TypeArray) {
     for (int k = 0; k < value.size(); ++k) {
       if (value[k].getType() != XmlRpc::XmlRpcValue::TypeString)
@@ -52,17 +50,10 @@ std::vector<std::string> buildCommandParam(ros::NodeHandle& pnh) {
   } else {
     throw std::runtime_error("parameter ~database_build_command must be a string or a list of strings");
   }
-  if (words.empty()) return words;
   // A command that is not a `drape_db build` (or a wrapper of one) fails each job with "printed no build
   // report" (TextileRegistry), so the node need not guess at wrappers here.
-  const std::string own = packageToolPath("drape_db");
-  for (std::string& w : words)
-    if (w == "drape_db") {
-      if (own.empty())
-        throw std::runtime_error("parameter ~database_build_command: no drape_db beside the node's executable; give its path");
-      w = own;
-    }
-  return words;
+  return withToolPath(words, "drape_db", words.empty() ? "" : packageToolPath("drape_db"),
+                      "parameter ~database_build_command");
 }
 
 }  // namespace
