@@ -7,9 +7,9 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 
+#include "textile_handling/db/build_progress_records.h"
 #include "textile_handling/db/database_errors.h"
 #include "textile_handling/db/drape_build_job.h"
 #include "textile_handling/registry/external_build_command.h"
@@ -36,53 +36,6 @@ void checkSpacing(Real v, const char* what) {
 // The database members every build makes (the base alone by default).
 std::vector<db::DrapeMemberSpec> buildMembers(const RegistryOptions& o) {
   return o.members.empty() ? db::drapeMembersByName("base") : o.members;
-}
-
-// The value of "key=" in a record line's words ("th-build-progress done=3 total=9 ..."); false if absent.
-bool recordValue(const std::string& line, const std::string& key, double* value) {
-  const std::string k = " " + key + "=";
-  const auto at = line.find(k);
-  if (at == std::string::npos) return false;
-  char* end = nullptr;
-  const char* begin = line.c_str() + at + k.size();
-  *value = std::strtod(begin, &end);
-  return end != begin && std::isfinite(*value);
-}
-
-// An external build's progress line (drape_db build --progress-records) as the builder's progress.
-bool parseProgressRecord(const std::string& line, const std::function<void(const db::DrapeBuildProgress&)>& on_progress) {
-  if (line.rfind("th-build-progress ", 0) != 0) return false;
-  double done = 0, total = 0, eta = -1;
-  if (!recordValue(line, "done", &done) || !recordValue(line, "total", &total)) return false;
-  recordValue(line, "eta_s", &eta);
-  db::DrapeBuildProgress p;
-  p.done = static_cast<int>(done);
-  p.total = static_cast<int>(total);
-  p.eta_s = eta;
-  on_progress(p);
-  return true;
-}
-
-// An external build's report line of one member, added to *total.
-bool parseReportRecord(const std::string& line, db::DrapeBuildReport* total) {
-  if (line.rfind("th-build-report ", 0) != 0) return false;
-  double v[8];
-  const char* keys[8] = {"generation", "planned", "to_simulate", "already_done", "simulated", "failed", "derived", "done_elsewhere"};
-  for (int k = 0; k < 8; ++k)
-    if (!recordValue(line, keys[k], &v[k])) return false;
-  db::DrapeBuildReport r;
-  r.generation = static_cast<std::int64_t>(v[0]);
-  r.planned = static_cast<int>(v[1]);
-  r.to_simulate = static_cast<int>(v[2]);
-  r.already_done = static_cast<int>(v[3]);
-  r.simulated_now = static_cast<int>(v[4]);
-  r.failed_now = static_cast<int>(v[5]);
-  r.derived_now = static_cast<int>(v[6]);
-  r.done_elsewhere = static_cast<int>(v[7]);
-  const std::int64_t textile = total->textile_id;
-  db::accumulateBuildReport(*total, r);
-  total->textile_id = textile;  // the report line names no textile
-  return true;
 }
 
 }  // namespace
@@ -460,8 +413,14 @@ db::DrapeBuildReport TextileRegistry::buildWithCommand(const Job& job, const Bui
   db::DrapeBuildReport rep;
   int reports = 0;
   const auto on_line = [&](const std::string& line) {
-    if (parseProgressRecord(line, on_progress)) return;
-    if (parseReportRecord(line, &rep)) {
+    db::DrapeBuildProgress progress;
+    if (db::parseProgressRecord(line, &progress)) {
+      on_progress(progress);
+      return;
+    }
+    db::DrapeBuildReport member;
+    if (db::parseReportRecord(line, &member)) {  // one per member build: the job's report sums them
+      db::accumulateBuildReport(rep, member);
       ++reports;
       return;
     }

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <iostream>
 
+#include "textile_handling/db/build_progress_records.h"
 #include "textile_handling/sim/timing.h"
 
 namespace textile_handling {
@@ -82,9 +83,7 @@ void BuildProgressPrinter::progress(const db::DrapeBuildProgress& p) {
   eta_s_ = p.eta_s;
   if (records_) {
     // One write per line, so that no other output (or mpirun's forwarding) splits it.
-    out_ << ("th-build-progress done=" + std::to_string(p.done) + " total=" + std::to_string(p.total) +
-             " eta_s=" + std::to_string(p.eta_s) + "\n")
-         << std::flush;
+    out_ << db::progressRecord(p) << std::flush;
     return;
   }
   printBar(false);

@@ -40,6 +40,7 @@
 #include "build_progress_printer.h"
 #include "textile_handling/bench/thesis_benchmark.h"
 #include "textile_handling/db/automatic_configuration.h"
+#include "textile_handling/db/build_progress_records.h"
 #include "textile_handling/db/drape_build_job.h"
 #include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
@@ -529,18 +530,12 @@ int buildOnFarm(const Args& a, const std::function<BuildRequest(const farm::MpiS
 }
 
 // The summary of one build (one member) on stdout; kExitFailedSims if rows of these settings failed.
-// With `records`, first a machine-readable line on stderr (what TextileRegistry reads, docs/build_farm.md):
-// "th-build-report generation=G planned=P to_simulate=T already_done=A simulated=S failed=F derived=X
-// done_elsewhere=E".
+// With `records`, first the machine-readable report line on stderr (build_progress_records.h).
 int printBuildReport(const HangingDrapeDatabase& db, const DrapeBuildConfig& c, const DrapeBuildReport& r,
                      bool records) {
   if (records) {  // one write, so that no other output (or mpirun's forwarding) splits the line
-    std::ostringstream line;
-    line << "th-build-report generation=" << r.generation << " planned=" << r.planned << " to_simulate=" << r.to_simulate
-         << " already_done=" << r.already_done << " simulated=" << r.simulated_now << " failed=" << r.failed_now
-         << " derived=" << r.derived_now << " done_elsewhere=" << r.done_elsewhere << "\n";
     std::cout.flush();
-    std::cerr << line.str() << std::flush;
+    std::cerr << reportRecord(r) << std::flush;
   }
   std::cout << "textile '" << c.textile.name << "' (id " << r.textile_id << "), symmetry " << r.symmetry
             << (r.symmetric_grid ? "" : " (grid not symmetric: every hold point simulated)") << "\n"
