@@ -94,7 +94,7 @@ class CoarseLevel {
       }
       gather_start_[a + 1] = static_cast<Index>(gather_.size());
     }
-    solver_.setPattern(*coarse_pattern_);
+    solver_.analyse(*coarse_pattern_);
   }
 
   // Assembles and factorises the coarse matrix P^T A P.
@@ -112,8 +112,7 @@ class CoarseLevel {
         for (int e = 0; e < bb; ++e) dst[e] += src[e];
       }
     }
-    if (!solver_.factorize(coarse_, {})) return false;
-    return solver_.negativePivots() == 0;
+    return solver_.factorize(coarse_);  // false unless positive definite
   }
 
   // z += P Ac^-1 P^T r.
@@ -147,7 +146,7 @@ class CoarseLevel {
   BlockSparseMatrix coarse_;
   std::vector<Index> gather_start_;
   std::vector<std::pair<Index, Index>> gather_;
-  BlockSparseLdlt solver_;
+  BlockLdlt solver_;
   VecX rc_, zc_;
 };
 

@@ -3,7 +3,7 @@
 // (conjugate residuals). Private to the simulation core.
 //
 // block_jacobi: z = D^-1 r with D the diagonal blocks. two_level: damped block-Jacobi smoothing plus
-// an exact (LDL^T) solve of the Galerkin coarse system P^T A P on node aggregates (P piecewise
+// an exact (block LDL^T, block_ldlt.h) solve of the Galerkin coarse system P^T A P on node aggregates (P piecewise
 // constant), as the symmetric V(nu, nu) cycle, or additively (D^-1 + P Ac^-1 P^T) for nu = 0 or after
 // dropSmoothing(). Every application is deterministic across OpenMP thread counts.
 #pragma once
@@ -15,7 +15,7 @@
 #include "textile_handling/sim/integrators.h"
 #include "textile_handling/sim/types.h"
 #include "block_jacobi.h"
-#include "sparse_ldlt.h"
+#include "block_ldlt.h"
 
 namespace textile_handling {
 

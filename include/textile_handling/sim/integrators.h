@@ -59,7 +59,7 @@ LinearSolverKind linearSolverFromString(const std::string& s);
 /// (backward_euler_newton).
 enum class PreconditionerKind {
   kBlockJacobi,  ///< inverse diagonal blocks ("block_jacobi")
-  /// Two-level ("two_level"): damped block-Jacobi smoothing plus an exact (LDL^T) solve of the
+  /// Two-level ("two_level"): damped block-Jacobi smoothing plus an exact (block LDL^T) solve of the
   /// Galerkin coarse system on node aggregates (a node and its pattern neighbours, ~13 nodes; built
   /// once per pattern and pinned set). About 10x fewer iterations than block-Jacobi on the towel.
   /// Falls back to block-Jacobi for a step whose coarse matrix is not positive definite.

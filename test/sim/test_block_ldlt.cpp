@@ -1,0 +1,192 @@
+// Tests of BlockLdlt (src/sim/block_ldlt.h), the coarse level's block LDL^T: solutions against dense
+// and scalar sparse (BlockSparseLdlt) references on random and grid patterns for block sizes 1 to 6, the
+// analysis reused for new values, indefinite matrices refused without spoiling the next factorisation,
+// and misuse.
+#include "../../src/sim/block_ldlt.h"
+#include "../../src/sim/sparse_ldlt.h"
+#include "textile_handling/sim/sim_errors.h"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+
+#include <random>
+#include <utility>
+#include <vector>
+
+namespace textile_handling {
+namespace {
+
+using Couplings = std::vector<std::pair<Index, Index>>;
+
+Couplings randomCouplings(std::mt19937& gen, Index n, int count) {
+  std::uniform_int_distribution<Index> node(0, n - 1);
+  Couplings c;
+  for (int k = 0; k < count; ++k) c.emplace_back(node(gen), node(gen));
+  return c;
+}
+
+// Couplings of a w x h grid with the yarn sheet's reach: neighbours one and two apart along rows and
+// columns, and diagonal neighbours.
+Couplings gridCouplings(Index w, Index h) {
+  Couplings c;
+  auto id = [w](Index x, Index y) { return y * w + x; };
+  for (Index y = 0; y < h; ++y)
+    for (Index x = 0; x < w; ++x)
+      for (const auto& [dx, dy] : std::vector<std::pair<Index, Index>>{{1, 0}, {2, 0}, {0, 1}, {0, 2}, {1, 1}, {1, -1}})
+        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h) c.emplace_back(id(x, y), id(x + dx, y + dy));
+  return c;
+}
+
+// Symmetric values on the pattern: random off-diagonal blocks (the transpose mirrored) and diagonal
+// blocks that make the matrix positive definite when `definite`, or give it a negative eigenvalue.
+void fillSymmetric(std::mt19937& gen, BlockSparseMatrix& a, bool definite) {
+  const BlockPattern& p = a.pattern();
+  const int b = p.blockSize();
+  std::uniform_real_distribution<Real> val(-1, 1);
+  a.setZero();
+  std::vector<Real> row_sum(static_cast<std::size_t>(p.numNodes()), 0.0);
+  for (Index i = 0; i < p.numNodes(); ++i)
+    for (Index k = p.rowStart()[i]; k < p.rowStart()[i + 1]; ++k) {
+      const Index j = p.column()[k];
+      if (j <= i) continue;
+      Real* upper = a.block(k);
+      Real* lower = a.block(p.find(j, i));
+      for (int r = 0; r < b; ++r)
+        for (int c = 0; c < b; ++c) {
+          const Real v = val(gen);
+          upper[r * b + c] = v;
+          lower[c * b + r] = v;
+          row_sum[static_cast<std::size_t>(i)] += std::abs(v);
+          row_sum[static_cast<std::size_t>(j)] += std::abs(v);
+        }
+    }
+  for (Index i = 0; i < p.numNodes(); ++i) {
+    Real* d = a.block(p.diagonal(i));
+    for (int r = 0; r < b; ++r)
+      for (int c = r; c < b; ++c) {
+        const Real v = 0.1 * val(gen);
+        d[r * b + c] = v;
+        d[c * b + r] = v;
+      }
+    for (int r = 0; r < b; ++r) d[r * b + r] += row_sum[static_cast<std::size_t>(i)] + 1.0 + b;
+  }
+  if (!definite) {
+    const Index i = p.numNodes() / 2;
+    a.block(p.diagonal(i))[0] = -1.0 - row_sum[static_cast<std::size_t>(i)];
+  }
+}
+
+Eigen::MatrixXd toDense(const BlockSparseMatrix& a) {
+  const BlockPattern& p = a.pattern();
+  const int b = p.blockSize();
+  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(p.numNodes() * b, p.numNodes() * b);
+  for (Index i = 0; i < p.numNodes(); ++i)
+    for (Index k = p.rowStart()[i]; k < p.rowStart()[i + 1]; ++k)
+      for (int r = 0; r < b; ++r)
+        for (int c = 0; c < b; ++c) d(i * b + r, p.column()[k] * b + c) = a.block(k)[r * b + c];
+  return d;
+}
+
+VecX randomVector(std::mt19937& gen, Index size) {
+  std::uniform_real_distribution<Real> val(-1, 1);
+  VecX v(size);
+  for (Index k = 0; k < size; ++k) v[k] = val(gen);
+  return v;
+}
+
+TEST(BlockLdlt, SolvesRandomDefiniteSystemsLikeADenseFactorisation) {
+  for (int b = 1; b <= 6; ++b)
+    for (unsigned seed = 0; seed < 8; ++seed) {
+      SCOPED_TRACE("block size " + std::to_string(b) + ", seed " + std::to_string(seed));
+      std::mt19937 gen(1000 * b + seed);
+      const Index n = 1 + static_cast<Index>(gen() % 50);
+      const BlockPattern p(n, b, randomCouplings(gen, n, static_cast<int>(gen() % (3 * n + 1))));
+      BlockSparseMatrix a(&p);
+      fillSymmetric(gen, a, true);
+      BlockLdlt ldlt;
+      ldlt.analyse(p);
+      ASSERT_TRUE(ldlt.factorize(a));
+      const VecX rhs = randomVector(gen, n * b);
+      VecX x;
+      ldlt.solve(rhs, x);
+      const Eigen::MatrixXd dense = toDense(a);
+      const VecX reference = dense.ldlt().solve(rhs);
+      ASSERT_EQ(x.size(), rhs.size());
+      EXPECT_LE((x - reference).norm(), 1e-11 * reference.norm());
+      EXPECT_LE((dense * x - rhs).norm(), 1e-11 * rhs.norm());
+    }
+}
+
+TEST(BlockLdlt, MatchesTheScalarFactorisationOnAGridAndReusesItsAnalysis) {
+  std::mt19937 gen(7);
+  const BlockPattern p(30 * 24, 5, gridCouplings(30, 24));
+  BlockSparseMatrix a(&p);
+  BlockLdlt block;
+  block.analyse(p);
+  BlockSparseLdlt scalar;
+  scalar.setPattern(p);
+  // The grid's fill: more blocks in L than the pattern's lower triangle.
+  EXPECT_GT(block.factorBlocks(), (p.numBlocks() - p.numNodes()) / 2);
+  VecX first;
+  for (int round = 0; round < 3; ++round) {  // new values on the same analysis
+    SCOPED_TRACE("round " + std::to_string(round));
+    fillSymmetric(gen, a, true);
+    ASSERT_TRUE(block.factorize(a));
+    ASSERT_TRUE(scalar.factorize(a, {}));
+    const VecX rhs = randomVector(gen, p.numNodes() * 5);
+    VecX x, reference;
+    block.solve(rhs, x);
+    scalar.solve(rhs, reference);
+    EXPECT_LE((x - reference).norm(), 1e-11 * reference.norm());
+    VecX ax;
+    a.multiply(x, ax);
+    EXPECT_LE((ax - rhs).norm(), 1e-11 * rhs.norm());
+    if (round == 0) first = x;
+    else EXPECT_GT((x - first).norm(), 0.1 * first.norm());  // the new values were used
+  }
+}
+
+TEST(BlockLdlt, RefusesAnIndefiniteMatrixAndRecoversOnTheNext) {
+  std::mt19937 gen(11);
+  const BlockPattern p(12 * 12, 3, gridCouplings(12, 12));
+  BlockSparseMatrix a(&p);
+  BlockLdlt ldlt;
+  ldlt.analyse(p);
+  fillSymmetric(gen, a, false);
+  EXPECT_LT(toDense(a).selfadjointView<Eigen::Lower>().eigenvalues().minCoeff(), 0);
+  EXPECT_FALSE(ldlt.factorize(a));
+  VecX x;
+  EXPECT_THROW(ldlt.solve(randomVector(gen, p.numNodes() * 3), x), SimError);
+  // A definite matrix afterwards factorises correctly (the failed run's workspace is not reused).
+  fillSymmetric(gen, a, true);
+  ASSERT_TRUE(ldlt.factorize(a));
+  const VecX rhs = randomVector(gen, p.numNodes() * 3);
+  ldlt.solve(rhs, x);
+  VecX ax;
+  a.multiply(x, ax);
+  EXPECT_LE((ax - rhs).norm(), 1e-11 * rhs.norm());
+  // A non-finite value is refused too.
+  a.block(p.diagonal(5))[0] = std::numeric_limits<Real>::quiet_NaN();
+  EXPECT_FALSE(ldlt.factorize(a));
+}
+
+TEST(BlockLdlt, RejectsMisuse) {
+  const BlockPattern p(4, 3, {{0, 1}, {2, 3}});
+  const BlockPattern other(4, 3, {{0, 1}});
+  const BlockPattern wide(2, 7, {{0, 1}});
+  BlockLdlt ldlt;
+  BlockSparseMatrix a(&p), b(&other);
+  EXPECT_THROW(ldlt.factorize(a), SimError);  // not analysed
+  EXPECT_THROW(ldlt.analyse(wide), SimError);
+  ldlt.analyse(p);
+  EXPECT_THROW(ldlt.factorize(b), SimError);  // another pattern
+  std::mt19937 gen(3);
+  fillSymmetric(gen, a, true);
+  ASSERT_TRUE(ldlt.factorize(a));
+  VecX x;
+  EXPECT_THROW(ldlt.solve(VecX::Zero(5), x), SimError);
+}
+
+}  // namespace
+}  // namespace textile_handling
