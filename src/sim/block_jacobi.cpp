@@ -18,8 +18,17 @@ namespace textile_handling {
 
 namespace {
 
-using RowMajor3 = Eigen::Matrix<Real, 3, 3, Eigen::RowMajor>;
-using RowMajorX = Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+template <int B>
+using BlockOf = Eigen::Matrix<Real, B, B, Eigen::RowMajor>;  // the storage of a block
+// The matrix a block is inverted in (3x3 blocks column-major, as the closed form has always used).
+template <int B>
+struct WorkBlock {
+  using type = BlockOf<B>;
+};
+template <>
+struct WorkBlock<3> {
+  using type = Mat3;
+};
 
 // D^-1 by Cholesky when the (symmetrised) block is positive definite, else V |Lambda|^-1 V^T.
 template <typename Mat>
@@ -41,73 +50,79 @@ bool positiveDefiniteInverse(const Mat& block, Mat& inv) {
 }
 
 // The plain inverse: closed form for 3x3 blocks, full-pivot LU otherwise.
-bool plainInverse3(const Mat3& a, Mat3& inv) {
+bool plainInverse(const Mat3& a, Mat3& inv) {
   const Real det = a.determinant();
   if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) return false;
   inv = a.inverse();
   return true;
 }
 
-bool plainInverseX(const RowMajorX& a, RowMajorX& inv) {
-  Eigen::FullPivLU<Eigen::MatrixXd> lu(a);
+template <typename Mat>
+bool plainInverse(const Mat& a, Mat& inv) {
+  Eigen::FullPivLU<Mat> lu(a);
   if (!lu.isInvertible()) return false;
   inv = lu.inverse();
   return true;
 }
 
-}  // namespace
-
-bool BlockJacobi::update(const BlockSparseMatrix& A, const std::vector<char>& node_pinned, Inverse kind) {
+// Fixed-size blocks (B > 0) keep the per-node work free of heap allocations; B = Eigen::Dynamic serves
+// the other block sizes.
+template <int B>
+bool invertBlocks(const BlockSparseMatrix& A, const std::vector<char>& node_pinned, bool plain, std::vector<Real>& inv_out) {
   const BlockPattern& p = A.pattern();
   const Index n = p.numNodes();
-  b_ = p.blockSize();
-  const int bb = b_ * b_;
-  inv_.assign(static_cast<size_t>(n) * bb, 0.0);
-  pinned_ = &node_pinned;
-  const bool plain = kind == Inverse::kPlain;
+  const int b = p.blockSize();
+  const std::size_t bb = static_cast<std::size_t>(b) * b;
   bool ok = true;
-#pragma omp parallel for schedule(static) reduction(&& : ok) if (parallelWorthIt(n, b_))
+#pragma omp parallel for schedule(static) reduction(&& : ok) if (parallelWorthIt(n, b))
   for (Index i = 0; i < n; ++i) {
     if (node_pinned[i]) continue;
-    const Real* blk = A.block(p.diagonal(i));
-    Real* out = inv_.data() + static_cast<size_t>(i) * bb;
-    if (b_ == 3) {
-      const Mat3 a = Eigen::Map<const RowMajor3>(blk);
-      Mat3 inv;
-      if (!(plain ? plainInverse3(a, inv) : positiveDefiniteInverse(a, inv))) {
-        ok = false;
-        continue;
-      }
-      Eigen::Map<RowMajor3> o(out);
-      o = inv;
-    } else {
-      const RowMajorX a = Eigen::Map<const RowMajorX>(blk, b_, b_);
-      RowMajorX inv;
-      if (!(plain ? plainInverseX(a, inv) : positiveDefiniteInverse(a, inv))) {
-        ok = false;
-        continue;
-      }
-      Eigen::Map<RowMajorX> o(out, b_, b_);
-      o = inv;
+    using Work = typename WorkBlock<B>::type;
+    const Work a = Eigen::Map<const BlockOf<B>>(A.block(p.diagonal(i)), b, b);
+    Work inv(b, b);
+    if (!(plain ? plainInverse(a, inv) : positiveDefiniteInverse(a, inv))) {
+      ok = false;
+      continue;
     }
+    Eigen::Map<BlockOf<B>>(inv_out.data() + static_cast<std::size_t>(i) * bb, b, b) = inv;
   }
   return ok;
 }
 
-void BlockJacobi::apply(const VecX& r, VecX& z, Real weight, bool add) const {
-  const Index n = static_cast<Index>((*pinned_).size());
-  const int bb = b_ * b_;
-  if (!add) z.setZero(r.size());
-#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b_))
+template <int B>
+void applyBlocks(const std::vector<Real>& inv, const std::vector<char>& pinned, int b, const VecX& r, VecX& z, Real weight) {
+  using Vec = Eigen::Matrix<Real, B, 1>;
+  const Index n = static_cast<Index>(pinned.size());
+  const std::size_t bb = static_cast<std::size_t>(b) * b;
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b))
   for (Index i = 0; i < n; ++i) {
-    if ((*pinned_)[i]) continue;
-    const Real* m = inv_.data() + static_cast<size_t>(i) * bb;
-    if (b_ == 3) {
-      Eigen::Map<Vec3>(z.data() + 3 * i) +=
-          weight * (Eigen::Map<const RowMajor3>(m) * Eigen::Map<const Vec3>(r.data() + 3 * i));
-    } else {
-      z.segment(i * b_, b_) += weight * (Eigen::Map<const RowMajorX>(m, b_, b_) * r.segment(i * b_, b_));
-    }
+    if (pinned[i]) continue;
+    Eigen::Map<Vec>(z.data() + i * b, b) +=
+        weight * (Eigen::Map<const BlockOf<B>>(inv.data() + static_cast<std::size_t>(i) * bb, b, b) *
+                  Eigen::Map<const Vec>(r.data() + i * b, b));
+  }
+}
+
+}  // namespace
+
+bool BlockJacobi::update(const BlockSparseMatrix& A, const std::vector<char>& node_pinned, Inverse kind) {
+  b_ = A.pattern().blockSize();
+  inv_.assign(static_cast<size_t>(A.pattern().numNodes()) * b_ * b_, 0.0);
+  pinned_ = &node_pinned;
+  const bool plain = kind == Inverse::kPlain;
+  switch (b_) {
+    case 3: return invertBlocks<3>(A, node_pinned, plain, inv_);
+    case 5: return invertBlocks<5>(A, node_pinned, plain, inv_);
+    default: return invertBlocks<Eigen::Dynamic>(A, node_pinned, plain, inv_);
+  }
+}
+
+void BlockJacobi::apply(const VecX& r, VecX& z, Real weight, bool add) const {
+  if (!add) z.setZero(r.size());
+  switch (b_) {
+    case 3: applyBlocks<3>(inv_, *pinned_, b_, r, z, weight); return;
+    case 5: applyBlocks<5>(inv_, *pinned_, b_, r, z, weight); return;
+    default: applyBlocks<Eigen::Dynamic>(inv_, *pinned_, b_, r, z, weight); return;
   }
 }
 
