@@ -23,7 +23,7 @@
 // first evaluation, so the clamped stiffness matrix is part of the Jacobians' time), solver and Newton
 // iterations per step, and the distance from the reference.
 // Stable step: the --stable-side sheet hung the same way for --stable-time seconds at each fixed step
-// of --stable-dts; stable = no divergence.
+// of --stable-dts; stable = no divergence. --stable-side 0 skips it.
 //
 // Writes DIR/step_cost.csv, DIR/stable_step.csv and DIR/step_cost.png (microseconds per crossing-step
 // against crossings); prints the median per size and thread count and the largest stable step.
@@ -33,6 +33,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -219,6 +220,15 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  bool sides_ok = !sides.empty();
+  for (double side : sides) sides_ok = sides_ok && side >= 2 && side <= 2000 && side == std::floor(side);
+  if (!sides_ok || steps < 1 || repeats < 1 || !(dt > 0) || (stable_side != 0 && (stable_side < 2 || stable_side > 2000)) ||
+      !(stable_time > 0) || stable_dts.empty() ||
+      !std::all_of(stable_dts.begin(), stable_dts.end(), [](double h) { return h > 0; })) {
+    std::cerr << "yarn_step_bench: sides must be whole numbers in 2..2000, --stable-side 0 or 2..2000, --steps and "
+                 "--repeats >= 1, --dt, --stable-time and every --stable-dts value > 0\n";
+    return 2;
+  }
   IntegratorType integrator;
   try {
     integrator = integratorFromString(integrator_name);
@@ -273,7 +283,7 @@ int main(int argc, char** argv) {
     omp_set_num_threads(1);
     stable << "side,crossings,dt_s,sim_time_s,stable,reason\n";
     double largest = 0;
-    for (double h : stable_dts) {
+    for (double h : stable_side > 0 ? stable_dts : std::vector<double>{}) {
       const DrapeSceneSpec spec = sheetSpec(stable_side, integrator, h, stable_time);
       DrapeScene scene = buildDrapeScene(spec);
       DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
@@ -284,7 +294,8 @@ int main(int argc, char** argv) {
       std::printf("stable step: %d x %d crossings at dt %g s: %s\n", stable_side, stable_side, h,
                   r.diverged ? ("diverged: " + r.divergence_reason).c_str() : "stable");
     }
-    std::printf("largest stable step of the %d x %d sheet over %g s: %g s\n", stable_side, stable_side, stable_time, largest);
+    if (stable_side > 0)
+      std::printf("largest stable step of the %d x %d sheet over %g s: %g s\n", stable_side, stable_side, stable_time, largest);
   } catch (const std::exception& e) {
     std::cerr << "yarn_step_bench: " << e.what() << "\n";
     return 5;
