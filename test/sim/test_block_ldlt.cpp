@@ -10,6 +10,7 @@
 
 #include <Eigen/Dense>
 
+#include <limits>
 #include <random>
 #include <utility>
 #include <vector>
@@ -95,6 +96,25 @@ VecX randomVector(std::mt19937& gen, Index size) {
   return v;
 }
 
+// A w x h grid system with b x b blocks, analysed.
+struct GridSystem {
+  GridSystem(Index w, Index h, int b, unsigned seed) : gen(seed), pattern(w * h, b, gridCouplings(w, h)), a(&pattern) {
+    ldlt.analyse(pattern);
+  }
+  // x = A^-1 rhs by the factorisation, with the residual of A x = rhs checked.
+  VecX solveChecked(const VecX& rhs) {
+    VecX x, ax;
+    ldlt.solve(rhs, x);
+    a.multiply(x, ax);
+    EXPECT_LE((ax - rhs).norm(), 1e-11 * rhs.norm());
+    return x;
+  }
+  std::mt19937 gen;
+  BlockPattern pattern;
+  BlockSparseMatrix a;
+  BlockLdlt ldlt;
+};
+
 TEST(BlockLdlt, SolvesRandomDefiniteSystemsLikeADenseFactorisation) {
   for (int b = 1; b <= 6; ++b)
     for (unsigned seed = 0; seed < 8; ++seed) {
@@ -119,56 +139,41 @@ TEST(BlockLdlt, SolvesRandomDefiniteSystemsLikeADenseFactorisation) {
 }
 
 TEST(BlockLdlt, MatchesTheScalarFactorisationOnAGridAndReusesItsAnalysis) {
-  std::mt19937 gen(7);
-  const BlockPattern p(30 * 24, 5, gridCouplings(30, 24));
-  BlockSparseMatrix a(&p);
-  BlockLdlt block;
-  block.analyse(p);
+  GridSystem g(30, 24, 5, 7);
   BlockSparseLdlt scalar;
-  scalar.setPattern(p);
+  scalar.setPattern(g.pattern);
   // The grid's fill: more blocks in L than the pattern's lower triangle.
-  EXPECT_GT(block.factorBlocks(), (p.numBlocks() - p.numNodes()) / 2);
+  EXPECT_GT(g.ldlt.factorBlocks(), (g.pattern.numBlocks() - g.pattern.numNodes()) / 2);
   VecX first;
   for (int round = 0; round < 3; ++round) {  // new values on the same analysis
     SCOPED_TRACE("round " + std::to_string(round));
-    fillSymmetric(gen, a, true);
-    ASSERT_TRUE(block.factorize(a));
-    ASSERT_TRUE(scalar.factorize(a, {}));
-    const VecX rhs = randomVector(gen, p.numNodes() * 5);
-    VecX x, reference;
-    block.solve(rhs, x);
+    fillSymmetric(g.gen, g.a, true);
+    ASSERT_TRUE(g.ldlt.factorize(g.a));
+    ASSERT_TRUE(scalar.factorize(g.a, {}));
+    const VecX rhs = randomVector(g.gen, g.pattern.numNodes() * 5);
+    const VecX x = g.solveChecked(rhs);
+    VecX reference;
     scalar.solve(rhs, reference);
     EXPECT_LE((x - reference).norm(), 1e-11 * reference.norm());
-    VecX ax;
-    a.multiply(x, ax);
-    EXPECT_LE((ax - rhs).norm(), 1e-11 * rhs.norm());
     if (round == 0) first = x;
     else EXPECT_GT((x - first).norm(), 0.1 * first.norm());  // the new values were used
   }
 }
 
 TEST(BlockLdlt, RefusesAnIndefiniteMatrixAndRecoversOnTheNext) {
-  std::mt19937 gen(11);
-  const BlockPattern p(12 * 12, 3, gridCouplings(12, 12));
-  BlockSparseMatrix a(&p);
-  BlockLdlt ldlt;
-  ldlt.analyse(p);
-  fillSymmetric(gen, a, false);
-  EXPECT_LT(toDense(a).selfadjointView<Eigen::Lower>().eigenvalues().minCoeff(), 0);
-  EXPECT_FALSE(ldlt.factorize(a));
+  GridSystem g(12, 12, 3, 11);
+  fillSymmetric(g.gen, g.a, false);
+  EXPECT_LT(toDense(g.a).selfadjointView<Eigen::Lower>().eigenvalues().minCoeff(), 0);
+  EXPECT_FALSE(g.ldlt.factorize(g.a));
   VecX x;
-  EXPECT_THROW(ldlt.solve(randomVector(gen, p.numNodes() * 3), x), SimError);
+  EXPECT_THROW(g.ldlt.solve(randomVector(g.gen, g.pattern.numNodes() * 3), x), SimError);
   // A definite matrix afterwards factorises correctly (the failed run's workspace is not reused).
-  fillSymmetric(gen, a, true);
-  ASSERT_TRUE(ldlt.factorize(a));
-  const VecX rhs = randomVector(gen, p.numNodes() * 3);
-  ldlt.solve(rhs, x);
-  VecX ax;
-  a.multiply(x, ax);
-  EXPECT_LE((ax - rhs).norm(), 1e-11 * rhs.norm());
+  fillSymmetric(g.gen, g.a, true);
+  ASSERT_TRUE(g.ldlt.factorize(g.a));
+  g.solveChecked(randomVector(g.gen, g.pattern.numNodes() * 3));
   // A non-finite value is refused too.
-  a.block(p.diagonal(5))[0] = std::numeric_limits<Real>::quiet_NaN();
-  EXPECT_FALSE(ldlt.factorize(a));
+  g.a.block(g.pattern.diagonal(5))[0] = std::numeric_limits<Real>::quiet_NaN();
+  EXPECT_FALSE(g.ldlt.factorize(g.a));
 }
 
 TEST(BlockLdlt, RejectsMisuse) {
