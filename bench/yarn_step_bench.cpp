@@ -282,20 +282,21 @@ int main(int argc, char** argv) {
     }
     omp_set_num_threads(1);
     stable << "side,crossings,dt_s,sim_time_s,stable,reason\n";
-    double largest = 0;
-    for (double h : stable_side > 0 ? stable_dts : std::vector<double>{}) {
-      const DrapeSceneSpec spec = sheetSpec(stable_side, integrator, h, stable_time);
-      DrapeScene scene = buildDrapeScene(spec);
-      DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
-      const RunResult r = sim.run();
-      stable << stable_side << ',' << scene.model->numNodes() << ',' << h << ',' << r.sim_time << ',' << (r.diverged ? 0 : 1)
-             << ",\"" << r.divergence_reason << "\"\n";
-      if (!r.diverged) largest = std::max(largest, h);
-      std::printf("stable step: %d x %d crossings at dt %g s: %s\n", stable_side, stable_side, h,
-                  r.diverged ? ("diverged: " + r.divergence_reason).c_str() : "stable");
-    }
-    if (stable_side > 0)
+    if (stable_side > 0) {  // 0: no stable-step scan
+      double largest = 0;
+      for (double h : stable_dts) {
+        const DrapeSceneSpec spec = sheetSpec(stable_side, integrator, h, stable_time);
+        DrapeScene scene = buildDrapeScene(spec);
+        DrapeSimulation sim(*scene.model, scene.pins, spec.settings, scene.x0, scene.v0);
+        const RunResult r = sim.run();
+        stable << stable_side << ',' << scene.model->numNodes() << ',' << h << ',' << r.sim_time << ',' << (r.diverged ? 0 : 1)
+               << ",\"" << r.divergence_reason << "\"\n";
+        if (!r.diverged) largest = std::max(largest, h);
+        std::printf("stable step: %d x %d crossings at dt %g s: %s\n", stable_side, stable_side, h,
+                    r.diverged ? ("diverged: " + r.divergence_reason).c_str() : "stable");
+      }
       std::printf("largest stable step of the %d x %d sheet over %g s: %g s\n", stable_side, stable_side, stable_time, largest);
+    }
   } catch (const std::exception& e) {
     std::cerr << "yarn_step_bench: " << e.what() << "\n";
     return 5;

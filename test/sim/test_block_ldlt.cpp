@@ -5,6 +5,7 @@
 #include "../../src/sim/block_ldlt.h"
 #include "../../src/sim/sparse_ldlt.h"
 #include "textile_handling/sim/sim_errors.h"
+#include "sim_test_support.h"
 
 #include <gtest/gtest.h>
 
@@ -78,24 +79,6 @@ void fillSymmetric(std::mt19937& gen, BlockSparseMatrix& a, bool definite) {
   }
 }
 
-Eigen::MatrixXd toDense(const BlockSparseMatrix& a) {
-  const BlockPattern& p = a.pattern();
-  const int b = p.blockSize();
-  Eigen::MatrixXd d = Eigen::MatrixXd::Zero(p.numNodes() * b, p.numNodes() * b);
-  for (Index i = 0; i < p.numNodes(); ++i)
-    for (Index k = p.rowStart()[i]; k < p.rowStart()[i + 1]; ++k)
-      for (int r = 0; r < b; ++r)
-        for (int c = 0; c < b; ++c) d(i * b + r, p.column()[k] * b + c) = a.block(k)[r * b + c];
-  return d;
-}
-
-VecX randomVector(std::mt19937& gen, Index size) {
-  std::uniform_real_distribution<Real> val(-1, 1);
-  VecX v(size);
-  for (Index k = 0; k < size; ++k) v[k] = val(gen);
-  return v;
-}
-
 // A w x h grid system with b x b blocks, analysed.
 struct GridSystem {
   GridSystem(Index w, Index h, int b, unsigned seed) : gen(seed), pattern(w * h, b, gridCouplings(w, h)), a(&pattern) {
@@ -127,10 +110,10 @@ TEST(BlockLdlt, SolvesRandomDefiniteSystemsLikeADenseFactorisation) {
       BlockLdlt ldlt;
       ldlt.analyse(p);
       ASSERT_TRUE(ldlt.factorize(a));
-      const VecX rhs = randomVector(gen, n * b);
+      const VecX rhs = sim_test_support::randomVector(n * b, gen());
       VecX x;
       ldlt.solve(rhs, x);
-      const Eigen::MatrixXd dense = toDense(a);
+      const Eigen::MatrixXd dense = sim_test_support::denseMatrix(a);
       const VecX reference = dense.ldlt().solve(rhs);
       ASSERT_EQ(x.size(), rhs.size());
       EXPECT_LE((x - reference).norm(), 1e-11 * reference.norm());
@@ -150,7 +133,7 @@ TEST(BlockLdlt, MatchesTheScalarFactorisationOnAGridAndReusesItsAnalysis) {
     fillSymmetric(g.gen, g.a, true);
     ASSERT_TRUE(g.ldlt.factorize(g.a));
     ASSERT_TRUE(scalar.factorize(g.a, {}));
-    const VecX rhs = randomVector(g.gen, g.pattern.numNodes() * 5);
+    const VecX rhs = sim_test_support::randomVector(g.pattern.numNodes() * 5, g.gen());
     const VecX x = g.solveChecked(rhs);
     VecX reference;
     scalar.solve(rhs, reference);
@@ -163,14 +146,14 @@ TEST(BlockLdlt, MatchesTheScalarFactorisationOnAGridAndReusesItsAnalysis) {
 TEST(BlockLdlt, RefusesAnIndefiniteMatrixAndRecoversOnTheNext) {
   GridSystem g(12, 12, 3, 11);
   fillSymmetric(g.gen, g.a, false);
-  EXPECT_LT(toDense(g.a).selfadjointView<Eigen::Lower>().eigenvalues().minCoeff(), 0);
+  EXPECT_LT(sim_test_support::denseMatrix(g.a).selfadjointView<Eigen::Lower>().eigenvalues().minCoeff(), 0);
   EXPECT_FALSE(g.ldlt.factorize(g.a));
   VecX x;
-  EXPECT_THROW(g.ldlt.solve(randomVector(g.gen, g.pattern.numNodes() * 3), x), SimError);
+  EXPECT_THROW(g.ldlt.solve(sim_test_support::randomVector(g.pattern.numNodes() * 3, g.gen()), x), SimError);
   // A definite matrix afterwards factorises correctly (the failed run's workspace is not reused).
   fillSymmetric(g.gen, g.a, true);
   ASSERT_TRUE(g.ldlt.factorize(g.a));
-  g.solveChecked(randomVector(g.gen, g.pattern.numNodes() * 3));
+  g.solveChecked(sim_test_support::randomVector(g.pattern.numNodes() * 3, g.gen()));
   // A non-finite value is refused too.
   g.a.block(g.pattern.diagonal(5))[0] = std::numeric_limits<Real>::quiet_NaN();
   EXPECT_FALSE(g.ldlt.factorize(g.a));
