@@ -81,33 +81,42 @@ class CoarseLevel {
     }
     coarse_pattern_ = std::make_unique<BlockPattern>(na, b_, couplings);
     coarse_ = BlockSparseMatrix(coarse_pattern_.get());
+    setupFineTimesProlongator(p);
+    // The coarse blocks from the rows of A P: (P^T A P)(a, c) = sum over i in a of (A P)(i, c).
     gather_start_.assign(na + 1, 0);
     gather_.clear();
     for (Index a = 0; a < na; ++a) {
       for (Index m = members_start_[a]; m < members_start_[a + 1]; ++m) {
         const Index i = members_[m];
-        for (Index k = rs[i]; k < rs[i + 1]; ++k) {
-          const Index j = col[k];
-          if (agg_[j] < 0) continue;
-          gather_.emplace_back(k, coarse_pattern_->find(a, agg_[j]));
-        }
+        for (Index s = ap_start_[i]; s < ap_start_[i + 1]; ++s) gather_.emplace_back(s, coarse_pattern_->find(a, ap_col_[s]));
       }
       gather_start_[a + 1] = static_cast<Index>(gather_.size());
     }
     solver_.analyse(*coarse_pattern_);
   }
 
-  // Assembles and factorises the coarse matrix P^T A P.
+  // Assembles A P and the coarse matrix P^T A P = P^T (A P), and factorises the latter.
   bool update(const BlockSparseMatrix& A) {
     if (num_agg_ == 0) return false;
     const int bb = b_ * b_;
-    const auto& rs = coarse_pattern_->rowStart();
+    const bool parallel = parallelWorthIt(static_cast<Index>(agg_.size()), b_);
     const auto& fine = A.values();
-#pragma omp parallel for schedule(static) if (parallelWorthIt(static_cast<Index>(agg_.size()), b_))
+    const Index n = static_cast<Index>(agg_.size());
+#pragma omp parallel for schedule(static) if (parallel)
+    for (Index i = 0; i < n; ++i) {
+      std::fill(ap_.begin() + ap_start_[i] * bb, ap_.begin() + ap_start_[i + 1] * bb, 0.0);
+      for (Index k = ap_fine_start_[i]; k < ap_fine_start_[i + 1]; ++k) {
+        const Real* src = fine.data() + static_cast<size_t>(ap_fine_[k].first) * bb;
+        Real* dst = ap_.data() + static_cast<size_t>(ap_fine_[k].second) * bb;
+        for (int e = 0; e < bb; ++e) dst[e] += src[e];
+      }
+    }
+    const auto& rs = coarse_pattern_->rowStart();
+#pragma omp parallel for schedule(static) if (parallel)
     for (Index a = 0; a < num_agg_; ++a) {
       std::fill(coarse_.block(rs[a]), coarse_.block(rs[a + 1]), 0.0);
       for (Index g = gather_start_[a]; g < gather_start_[a + 1]; ++g) {
-        const Real* src = fine.data() + static_cast<size_t>(gather_[g].first) * bb;
+        const Real* src = ap_.data() + static_cast<size_t>(gather_[g].first) * bb;
         Real* dst = coarse_.block(gather_[g].second);
         for (int e = 0; e < bb; ++e) dst[e] += src[e];
       }
@@ -132,9 +141,78 @@ class CoarseLevel {
       if (agg_[i] >= 0) z.segment(i * b_, b_) += zc_.segment(agg_[i] * b_, b_);
   }
 
+  // t -= (A P) zc for the zc of the last addCoarseCorrection(): the change of the residual r - A z that
+  // the correction made, at the cost of A P's few blocks per row instead of a product with A.
+  void subtractCoarseProduct(VecX& t) const {
+    switch (b_) {
+      case 3: subtractCoarseProductFixed<3>(t); return;
+      case 5: subtractCoarseProductFixed<5>(t); return;
+      default: break;
+    }
+    const Index n = static_cast<Index>(agg_.size());
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b_))
+    for (Index i = 0; i < n; ++i)
+      for (Index s = ap_start_[i]; s < ap_start_[i + 1]; ++s) {
+        const Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> blk(
+            ap_.data() + static_cast<size_t>(s) * b_ * b_, b_, b_);
+        t.segment(i * b_, b_) -= blk * zc_.segment(ap_col_[s] * b_, b_);
+      }
+  }
+
   Index numAggregates() const { return num_agg_; }
+  const std::vector<Index>& aggregates() const { return agg_; }
 
  private:
+  // The block pattern of A P (fine rows by aggregates: the distinct aggregates of each free row's
+  // neighbours; pinned rows are empty, as A's are in the preconditioned system) and, per fine row, the
+  // (fine slot -> A P slot) list that sums A's blocks into it.
+  void setupFineTimesProlongator(const BlockPattern& p) {
+    const Index n = p.numNodes();
+    const auto& rs = p.rowStart();
+    const auto& col = p.column();
+    ap_start_.assign(n + 1, 0);
+    ap_col_.clear();
+    ap_fine_start_.assign(n + 1, 0);
+    ap_fine_.clear();
+    std::vector<Index> row_aggs;
+    for (Index i = 0; i < n; ++i) {
+      if (!pinned_[static_cast<std::size_t>(i)]) {
+        row_aggs.clear();
+        for (Index k = rs[i]; k < rs[i + 1]; ++k)
+          if (agg_[col[k]] >= 0) row_aggs.push_back(agg_[col[k]]);
+        std::sort(row_aggs.begin(), row_aggs.end());
+        row_aggs.erase(std::unique(row_aggs.begin(), row_aggs.end()), row_aggs.end());
+        const Index first = static_cast<Index>(ap_col_.size());
+        ap_col_.insert(ap_col_.end(), row_aggs.begin(), row_aggs.end());
+        for (Index k = rs[i]; k < rs[i + 1]; ++k) {
+          const Index a = agg_[col[k]];
+          if (a < 0) continue;
+          const Index s = first + static_cast<Index>(std::lower_bound(row_aggs.begin(), row_aggs.end(), a) - row_aggs.begin());
+          ap_fine_.emplace_back(k, s);
+        }
+      }
+      ap_start_[i + 1] = static_cast<Index>(ap_col_.size());
+      ap_fine_start_[i + 1] = static_cast<Index>(ap_fine_.size());
+    }
+    ap_.assign(ap_col_.size() * static_cast<std::size_t>(b_ * b_), 0.0);
+  }
+
+  template <int B>
+  void subtractCoarseProductFixed(VecX& t) const {
+    using BlockMat = Eigen::Matrix<Real, B, B, Eigen::RowMajor>;
+    using BlockVec = Eigen::Matrix<Real, B, 1>;
+    const Index n = static_cast<Index>(agg_.size());
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, B))
+    for (Index i = 0; i < n; ++i) {
+      if (ap_start_[i] == ap_start_[i + 1]) continue;
+      BlockVec acc = BlockVec::Zero();
+      for (Index s = ap_start_[i]; s < ap_start_[i + 1]; ++s)
+        acc.noalias() += Eigen::Map<const BlockMat>(ap_.data() + static_cast<size_t>(s) * B * B) *
+                         Eigen::Map<const BlockVec>(zc_.data() + static_cast<size_t>(ap_col_[s]) * B);
+      t.template segment<B>(i * B) -= acc;
+    }
+  }
+
   const BlockPattern* pattern_ = nullptr;
   Index num_blocks_ = 0;
   std::vector<char> pinned_;
@@ -144,7 +222,11 @@ class CoarseLevel {
   std::vector<Index> members_start_, members_;
   std::unique_ptr<BlockPattern> coarse_pattern_;
   BlockSparseMatrix coarse_;
-  std::vector<Index> gather_start_;
+  std::vector<Index> ap_start_, ap_col_;                 // A P: blocks of fine row i, their aggregates
+  std::vector<Real> ap_;                                 // A P's values, row-major b x b blocks
+  std::vector<Index> ap_fine_start_;                     // per fine row: its (A slot, A P slot) pairs
+  std::vector<std::pair<Index, Index>> ap_fine_;
+  std::vector<Index> gather_start_;                      // per aggregate: its (A P slot, coarse slot) pairs
   std::vector<std::pair<Index, Index>> gather_;
   BlockLdlt solver_;
   VecX rc_, zc_;
@@ -169,6 +251,10 @@ bool SystemPreconditioner::update(const BlockSparseMatrix& a, const std::vector<
     use_coarse_ = coarse_->update(a);
   }
   return true;
+}
+
+std::vector<Index> SystemPreconditioner::aggregateOfNode() const {
+  return use_coarse_ ? coarse_->aggregates() : std::vector<Index>();
 }
 
 bool SystemPreconditioner::dropSmoothing() {
@@ -206,7 +292,10 @@ void SystemPreconditioner::apply(const VecX& r, VecX& z) {
   applyA(z, t_);
   t_ = r - t_;
   coarse_->addCoarseCorrection(t_, z);
-  for (int s = 0; s < nu; ++s) {
+  // The first post-smoothing residual r - A (z + P zc) = t - (A P) zc, without a product with A.
+  coarse_->subtractCoarseProduct(t_);
+  jacobi_.apply(t_, z, w, true);
+  for (int s = 1; s < nu; ++s) {
     applyA(z, t_);
     t_ = r - t_;
     jacobi_.apply(t_, z, w, true);

@@ -41,6 +41,9 @@ class SystemPreconditioner {
   /// inverses and the coarse matrix are) until the next update. False if there was nothing to drop.
   bool dropSmoothing();
   bool usesCoarseLevel() const { return use_coarse_; }
+  /// The coarse level's aggregate of every node (-1 for pinned nodes); empty without a coarse level.
+  /// For tests and diagnostics: P maps aggregate a's coarse DOFs onto every member node's DOFs.
+  std::vector<Index> aggregateOfNode() const;
 
  private:
   void applyA(const VecX& in, VecX& out) const;  // out = A_ff in

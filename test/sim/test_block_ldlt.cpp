@@ -20,63 +20,14 @@ namespace textile_handling {
 namespace {
 
 using Couplings = std::vector<std::pair<Index, Index>>;
+using sim_test_support::fillSymmetric;
+using sim_test_support::gridCouplings;
 
 Couplings randomCouplings(std::mt19937& gen, Index n, int count) {
   std::uniform_int_distribution<Index> node(0, n - 1);
   Couplings c;
   for (int k = 0; k < count; ++k) c.emplace_back(node(gen), node(gen));
   return c;
-}
-
-// Couplings of a w x h grid with the yarn sheet's reach: neighbours one and two apart along rows and
-// columns, and diagonal neighbours.
-Couplings gridCouplings(Index w, Index h) {
-  Couplings c;
-  auto id = [w](Index x, Index y) { return y * w + x; };
-  for (Index y = 0; y < h; ++y)
-    for (Index x = 0; x < w; ++x)
-      for (const auto& [dx, dy] : std::vector<std::pair<Index, Index>>{{1, 0}, {2, 0}, {0, 1}, {0, 2}, {1, 1}, {1, -1}})
-        if (x + dx >= 0 && x + dx < w && y + dy >= 0 && y + dy < h) c.emplace_back(id(x, y), id(x + dx, y + dy));
-  return c;
-}
-
-// Symmetric values on the pattern: random off-diagonal blocks (the transpose mirrored) and diagonal
-// blocks that make the matrix positive definite when `definite`, or give it a negative eigenvalue.
-void fillSymmetric(std::mt19937& gen, BlockSparseMatrix& a, bool definite) {
-  const BlockPattern& p = a.pattern();
-  const int b = p.blockSize();
-  std::uniform_real_distribution<Real> val(-1, 1);
-  a.setZero();
-  std::vector<Real> row_sum(static_cast<std::size_t>(p.numNodes()), 0.0);
-  for (Index i = 0; i < p.numNodes(); ++i)
-    for (Index k = p.rowStart()[i]; k < p.rowStart()[i + 1]; ++k) {
-      const Index j = p.column()[k];
-      if (j <= i) continue;
-      Real* upper = a.block(k);
-      Real* lower = a.block(p.find(j, i));
-      for (int r = 0; r < b; ++r)
-        for (int c = 0; c < b; ++c) {
-          const Real v = val(gen);
-          upper[r * b + c] = v;
-          lower[c * b + r] = v;
-          row_sum[static_cast<std::size_t>(i)] += std::abs(v);
-          row_sum[static_cast<std::size_t>(j)] += std::abs(v);
-        }
-    }
-  for (Index i = 0; i < p.numNodes(); ++i) {
-    Real* d = a.block(p.diagonal(i));
-    for (int r = 0; r < b; ++r)
-      for (int c = r; c < b; ++c) {
-        const Real v = 0.1 * val(gen);
-        d[r * b + c] = v;
-        d[c * b + r] = v;
-      }
-    for (int r = 0; r < b; ++r) d[r * b + r] += row_sum[static_cast<std::size_t>(i)] + 1.0 + b;
-  }
-  if (!definite) {
-    const Index i = p.numNodes() / 2;
-    a.block(p.diagonal(i))[0] = -1.0 - row_sum[static_cast<std::size_t>(i)];
-  }
 }
 
 // A w x h grid system with b x b blocks, analysed.
