@@ -18,4 +18,4 @@ for r in $(seq 1 "$rounds"); do
     LD_LIBRARY_PATH=$(dirname "$bin") "$bin" --out "$here/newton/$arm-$r" --sides 250 --integrator backward_euler_newton "${common[@]}" > "$here/newton/$arm-$r.txt"
   done
 done
-python3 "$here/summarise.py" "$here" | tee "$here/summary.txt"
+python3 "$here/../2026-12-06-yarn-block-coarse-solve/summarise.py" "$here" | tee "$here/summary.txt"
