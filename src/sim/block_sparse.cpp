@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "block_rows_product.h"
 #include "parallel_size.h"
 
 namespace textile_handling {
@@ -54,12 +55,11 @@ void BlockSparseMatrix::setZero() { std::fill(values_.begin(), values_.end(), 0.
 
 namespace {
 template <int B>
-void multiplyFixed(const BlockPattern& p, const std::vector<Real>& values, const VecX& x, VecX& y) {
+void multiplyFixed(const std::vector<Index>& rs, const std::vector<Index>& col, const std::vector<Real>& values,
+                   const VecX& x, VecX& y) {
   using BlockMat = Eigen::Matrix<Real, B, B, Eigen::RowMajor>;
   using BlockVec = Eigen::Matrix<Real, B, 1>;
-  const auto& rs = p.rowStart();
-  const auto& col = p.column();
-  const Index n = p.numNodes();
+  const Index n = static_cast<Index>(rs.size()) - 1;
 #pragma omp parallel for schedule(static) if (parallelWorthIt(n, B))
   for (Index i = 0; i < n; ++i) {
     BlockVec acc = BlockVec::Zero();
@@ -72,28 +72,31 @@ void multiplyFixed(const BlockPattern& p, const std::vector<Real>& values, const
 }
 }  // namespace
 
-void BlockSparseMatrix::multiply(const VecX& x, VecX& y) const {
-  const BlockPattern& p = *pattern_;
-  y.resize(static_cast<Index>(p.numNodes()) * p.blockSize());
-  switch (p.blockSize()) {
-    case 3: multiplyFixed<3>(p, values_, x, y); return;
-    case 5: multiplyFixed<5>(p, values_, x, y); return;
+void multiplyBlockRows(const std::vector<Index>& rs, const std::vector<Index>& col, const std::vector<Real>& values,
+                       int b, const VecX& x, VecX& y) {
+  const Index n = static_cast<Index>(rs.size()) - 1;
+  y.resize(n * b);
+  switch (b) {
+    case 3: multiplyFixed<3>(rs, col, values, x, y); return;
+    case 5: multiplyFixed<5>(rs, col, values, x, y); return;
     default: break;
   }
-  const int b = p.blockSize();
-  const auto& rs = p.rowStart();
-  const auto& col = p.column();
-#pragma omp parallel for schedule(static) if (parallelWorthIt(p.numNodes(), b))
-  for (Index i = 0; i < p.numNodes(); ++i) {
+  const Index bb = static_cast<Index>(b) * b;
+#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b))
+  for (Index i = 0; i < n; ++i) {
     for (int r = 0; r < b; ++r) {
       Real acc = 0;
       for (Index k = rs[i]; k < rs[i + 1]; ++k) {
-        const Real* blk = values_.data() + static_cast<size_t>(k) * bb_ + r * b;
+        const Real* blk = values.data() + static_cast<size_t>(k) * bb + r * b;
         for (int c = 0; c < b; ++c) acc += blk[c] * x[col[k] * b + c];
       }
       y[i * b + r] = acc;
     }
   }
+}
+
+void BlockSparseMatrix::multiply(const VecX& x, VecX& y) const {
+  multiplyBlockRows(pattern_->rowStart(), pattern_->column(), values_, pattern_->blockSize(), x, y);
 }
 
 }  // namespace textile_handling

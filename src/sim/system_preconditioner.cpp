@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "block_rows_product.h"
 #include "parallel_size.h"
 
 namespace textile_handling {
@@ -143,20 +144,9 @@ class CoarseLevel {
 
   // t -= (A P) zc for the zc of the last addCoarseCorrection(): the change of the residual r - A z that
   // the correction made, at the cost of A P's few blocks per row instead of a product with A.
-  void subtractCoarseProduct(VecX& t) const {
-    switch (b_) {
-      case 3: subtractCoarseProductFixed<3>(t); return;
-      case 5: subtractCoarseProductFixed<5>(t); return;
-      default: break;
-    }
-    const Index n = static_cast<Index>(agg_.size());
-#pragma omp parallel for schedule(static) if (parallelWorthIt(n, b_))
-    for (Index i = 0; i < n; ++i)
-      for (Index s = ap_start_[i]; s < ap_start_[i + 1]; ++s) {
-        const Eigen::Map<const Eigen::Matrix<Real, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>> blk(
-            ap_.data() + static_cast<size_t>(s) * b_ * b_, b_, b_);
-        t.segment(i * b_, b_) -= blk * zc_.segment(ap_col_[s] * b_, b_);
-      }
+  void subtractCoarseProduct(VecX& t) {
+    multiplyBlockRows(ap_start_, ap_col_, ap_, b_, zc_, ap_zc_);
+    t -= ap_zc_;
   }
 
   Index numAggregates() const { return num_agg_; }
@@ -197,22 +187,6 @@ class CoarseLevel {
     ap_.assign(ap_col_.size() * static_cast<std::size_t>(b_ * b_), 0.0);
   }
 
-  template <int B>
-  void subtractCoarseProductFixed(VecX& t) const {
-    using BlockMat = Eigen::Matrix<Real, B, B, Eigen::RowMajor>;
-    using BlockVec = Eigen::Matrix<Real, B, 1>;
-    const Index n = static_cast<Index>(agg_.size());
-#pragma omp parallel for schedule(static) if (parallelWorthIt(n, B))
-    for (Index i = 0; i < n; ++i) {
-      if (ap_start_[i] == ap_start_[i + 1]) continue;
-      BlockVec acc = BlockVec::Zero();
-      for (Index s = ap_start_[i]; s < ap_start_[i + 1]; ++s)
-        acc.noalias() += Eigen::Map<const BlockMat>(ap_.data() + static_cast<size_t>(s) * B * B) *
-                         Eigen::Map<const BlockVec>(zc_.data() + static_cast<size_t>(ap_col_[s]) * B);
-      t.template segment<B>(i * B) -= acc;
-    }
-  }
-
   const BlockPattern* pattern_ = nullptr;
   Index num_blocks_ = 0;
   std::vector<char> pinned_;
@@ -229,7 +203,7 @@ class CoarseLevel {
   std::vector<Index> gather_start_;                      // per aggregate: its (A P slot, coarse slot) pairs
   std::vector<std::pair<Index, Index>> gather_;
   BlockLdlt solver_;
-  VecX rc_, zc_;
+  VecX rc_, zc_, ap_zc_;
 };
 
 SystemPreconditioner::SystemPreconditioner() : coarse_(std::make_unique<CoarseLevel>()) {}
