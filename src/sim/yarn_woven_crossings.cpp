@@ -147,15 +147,18 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
       if (rows.owns(node)) f->segment<3>(kB * node) += factor * g.segment<3>(3 * a);
     }
   };
-  // The kernels of a pair run in parallel, and so do their sums, by rows, in pair order (ordered_parallel.h).
+  // The kernels of a pair and their sums run on all threads, each adding its rows in pair order (ordered_parallel.h).
   struct PairTerms {
     yarn::CrossingVector gradient;
     yarn::CrossingMatrix hessian;
     yarn::ShearFriction friction;
   };
   const bool with_f = conservative && f, with_dfdx = conservative && dfdx;
-  computeInParallelApplyByRows<PairTerms>(
-      conservative || friction ? shear_pairs_.size() : 0,
+  computeInParallelApplyByRowRanges<PairTerms>(
+      shearPairSchedule(), conservative || friction ? shear_pairs_.size() : 0, static_cast<Index>(sheet_.nodeCount()),
+      [&](std::size_t k, auto&& visit) {
+        for (Index node : shear_pairs_[k].node) visit(node);
+      },
       [&](std::size_t k, PairTerms& t) {
         const ShearPair& p = shear_pairs_[k];
         if (p.torn) return;

@@ -103,9 +103,23 @@ WovenFabric yarnBundleFabric(const WovenFabric& fabric, Real spacing) {
   return b;
 }
 
+struct YarnWovenModel::StencilSchedules {
+  RowRangeSchedule segments, bends, shear_pairs;
+};
+
+YarnWovenModel::YarnWovenModel(YarnWovenModel&&) noexcept = default;
+YarnWovenModel& YarnWovenModel::operator=(YarnWovenModel&&) noexcept = default;
+YarnWovenModel::~YarnWovenModel() = default;
+
+RowRangeSchedule& YarnWovenModel::schedule(const std::vector<Stencil>& list) const {
+  return &list == &bends_ ? schedules_->bends : schedules_->segments;
+}
+
+RowRangeSchedule& YarnWovenModel::shearPairSchedule() const { return schedules_->shear_pairs; }
+
 YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOptions options)
     : sheet_(std::move(sheet)), fabric_(std::move(fabric)), options_(std::move(options)),
-      gravity_(0, 0, options_.gravity ? -kGravity : 0) {
+      gravity_(0, 0, options_.gravity ? -kGravity : 0), schedules_(std::make_unique<StencilSchedules>()) {
   validateWovenFabric(fabric_);
   validateTearTension(options_.tear_tension_n);
   const std::size_t n = sheet_.nodeCount(), dofs = sheet_.dofCount();
@@ -190,28 +204,33 @@ void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale
   }
 }
 
+template <int Nodes, class Kernel>
+void YarnWovenModel::addStencilMatrices(const std::vector<Stencil>& list, Real scale, bool skip_non_finite,
+                                        BlockSparseMatrix& a, Kernel&& kernel) const {
+  using Matrix = Eigen::Matrix<Real, 4 * Nodes, 4 * Nodes>;
+  computeInParallelApplyByRowRanges<Matrix>(
+      schedule(list), list.size(), static_cast<Index>(sheet_.nodeCount()),
+      [&](std::size_t k, auto&& visit) {
+        for (int i = 0; i < Nodes; ++i) visit(list[k].node[static_cast<std::size_t>(i)]);
+      },
+      [&](std::size_t k, Matrix& m) {
+        if (!list[k].torn) m = kernel(list[k]);
+      },
+      [&](std::size_t k, const Matrix& m, const RowShare& rows) {
+        if (!list[k].torn && (!skip_non_finite || m.allFinite())) scatterBlocks<Nodes>(m, list[k], scale, a, rows);
+      });
+}
+
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
-  computeInParallelApplyByRows<yarn::SegmentMatrix>(
-      segments_.size(),
-      [&](std::size_t k, yarn::SegmentMatrix& h) {
-        if (segments_[k].torn) return;
-        const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
-        h = clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
-      },
-      [&](std::size_t k, const yarn::SegmentMatrix& h, const RowShare& rows) {
-        if (!segments_[k].torn && h.allFinite()) scatterBlocks<2>(h, segments_[k], scale, a, rows);
-      });
-  computeInParallelApplyByRows<yarn::BendMatrix>(
-      bends_.size(),
-      [&](std::size_t k, yarn::BendMatrix& h) {
-        if (bends_[k].torn) return;
-        const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
-        h = clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
-      },
-      [&](std::size_t k, const yarn::BendMatrix& h, const RowShare& rows) {
-        if (!bends_[k].torn && h.allFinite()) scatterBlocks<3>(h, bends_[k], scale, a, rows);
-      });
+  addStencilMatrices<2>(segments_, scale, true, a, [&](const Stencil& s) {
+    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
+    return clamped ? yarn::stretchHessianClamped(e, k_s) : yarn::stretchHessian(e, k_s);
+  });
+  addStencilMatrices<3>(bends_, scale, true, a, [&](const Stencil& s) {
+    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(s));
+    return clamped ? yarn::bendHessianClamped(e, k_b) : yarn::bendHessian(e, k_b);
+  });
 }
 
 namespace {
@@ -235,11 +254,13 @@ Real& YarnWovenModel::diagonalEntry(BlockSparseMatrix& a, std::size_t dof) const
 void YarnWovenModel::addGravityHessian(Real scale, BlockSparseMatrix& a) const {
   if (!options_.gravity) return;
   const yarn::SegmentMatrix h = yarn::gravityHessian(fabric_.linear_density_kg_per_m, gravity_);
-#pragma omp parallel
-  {  // by rows, every row in segment order (ordered_parallel.h)
-    const RowShare rows{omp_get_thread_num(), omp_get_num_threads()};
-    for (const Stencil& s : segments_) scatterBlocks<2>(h, s, scale, a, rows);
-  }
+  // The same for all segments, torn ones included (their weight stays).
+  computeInParallelApplyByRowRanges<char>(
+      schedule(segments_), segments_.size(), static_cast<Index>(sheet_.nodeCount()),
+      [&](std::size_t k, auto&& visit) {
+        for (int i = 0; i < 2; ++i) visit(segments_[k].node[static_cast<std::size_t>(i)]);
+      },
+      [](std::size_t, char&) {}, [&](std::size_t k, const char&, const RowShare& rows) { scatterBlocks<2>(h, segments_[k], scale, a, rows); });
 }
 
 ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f, ForceJacobians* jac) {
@@ -375,15 +396,9 @@ std::vector<DrawnYarn> YarnWovenModel::drawnYarns() const {
 
 void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix& a) const {
   const VecX q = kernelCoordinates(x);
-  computeInParallelApplyByRows<yarn::SegmentMatrix>(
-      segments_.size(),
-      [&](std::size_t k, yarn::SegmentMatrix& m) {
-        if (segments_[k].torn) return;
-        m = yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k])), fabric_.linear_density_kg_per_m);
-      },
-      [&](std::size_t k, const yarn::SegmentMatrix& m, const RowShare& rows) {
-        if (!segments_[k].torn) scatterBlocks<2>(m, segments_[k], scale, a, rows);
-      });
+  addStencilMatrices<2>(segments_, scale, false, a, [&](const Stencil& s) {
+    return yarn::segmentMass(yarn_stencil::gather<2>(q, dofsOf<2>(s)), fabric_.linear_density_kg_per_m);
+  });
   addTornSegmentMass(q, scale, a);
   for (std::size_t d : sheet_.held_dofs) diagonalEntry(a, d) += scale * lumped_[static_cast<Eigen::Index>(d)];
 }

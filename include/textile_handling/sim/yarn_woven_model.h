@@ -13,6 +13,7 @@
 #include <array>
 #include <cstddef>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -26,7 +27,8 @@
 
 namespace textile_handling {
 
-struct RowShare;  // src/sim/ordered_parallel.h
+struct RowShare;          // src/sim/ordered_parallel.h
+class RowRangeSchedule;  // src/sim/ordered_parallel.h
 
 /// The constants of the crossing terms the source leaves open (notes section 9.1, 9.5), as factors of
 /// the fabric's own stiffnesses so that they keep their meaning for any yarn and bundle size.
@@ -86,6 +88,9 @@ class YarnWovenModel : public ClothModel {
   /// `fabric`: the simulated fabric (its spacings must match the sheet's). Throws SimError for an
   /// invalid fabric or a sheet with no segment.
   YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOptions options);
+  YarnWovenModel(YarnWovenModel&&) noexcept;
+  YarnWovenModel& operator=(YarnWovenModel&&) noexcept;
+  ~YarnWovenModel() override;
 
   std::string name() const override { return "yarn_woven"; }
   Index numNodes() const override { return static_cast<Index>(sheet_.nodeCount()); }
@@ -242,6 +247,12 @@ class YarnWovenModel : public ClothModel {
   template <int Nodes, class Matrix>
   /// Adds scale m into a's blocks of the stencil's free DOFs, in the rows of nodes `rows` owns only.
   void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, const RowShare& rows) const;
+  /// Adds scale kernel(s) (a 4 Nodes x 4 Nodes matrix) of every untorn stencil s of `list` into a, on
+  /// all threads in stencil order (ordered_parallel.h); with skip_non_finite, a matrix with a NaN or
+  /// infinity (a degenerate term) is left out instead of added.
+  template <int Nodes, class Kernel>
+  void addStencilMatrices(const std::vector<Stencil>& list, Real scale, bool skip_non_finite, BlockSparseMatrix& a,
+                          Kernel&& kernel) const;
 
   YarnSheet sheet_;
   WovenFabric fabric_;
@@ -275,6 +286,12 @@ class YarnWovenModel : public ClothModel {
   std::vector<yarn::PenaltyContact> self_contacts_;
   bool self_contacts_detected_ = false;
   Real gamma_ = 0, k_p_ = 0, d_p_ = 0, mu_p_ = 0;
+  // Which thread adds which stencils' rows (ordered_parallel.h), per stencil list; rebuilt on use when
+  // the thread count changes, so mutable. Not shared between models.
+  struct StencilSchedules;
+  std::unique_ptr<StencilSchedules> schedules_;
+  RowRangeSchedule& schedule(const std::vector<Stencil>& list) const;
+  RowRangeSchedule& shearPairSchedule() const;
 };
 
 }  // namespace textile_handling
