@@ -192,6 +192,24 @@ YarnWovenModel::YarnWovenModel(YarnSheet sheet, WovenFabric fabric, YarnWovenOpt
 template <int Nodes, class Matrix>
 void YarnWovenModel::scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a,
                                    const RowShare& rows) const {
+  bool any_held = false;
+  for (int r = 0; r < 4 * Nodes; ++r) any_held |= held_[s.dof[static_cast<std::size_t>(r)]] != 0;
+  if (!any_held) {  // the common case: node i's DOFs are x, y, z and one sliding DOF (3 or 4) in its block
+    for (int i = 0; i < Nodes; ++i) {
+      if (!rows.owns(s.node[static_cast<std::size_t>(i)])) continue;
+      const auto si = static_cast<int>(s.dof[static_cast<std::size_t>(4 * i + 3)] % kB);
+      for (int j = 0; j < Nodes; ++j) {
+        const auto sj = static_cast<int>(s.dof[static_cast<std::size_t>(4 * j + 3)] % kB);
+        Real* blk = a.block(s.slot[static_cast<std::size_t>(i * Nodes + j)]);
+        for (int r = 0; r < 4; ++r) {
+          Real* row = blk + (r < 3 ? r : si) * kB;
+          for (int c = 0; c < 3; ++c) row[c] += scale * m(4 * i + r, 4 * j + c);
+          row[sj] += scale * m(4 * i + r, 4 * j + 3);
+        }
+      }
+    }
+    return;
+  }
   for (int r = 0; r < 4 * Nodes; ++r) {
     const Index row_node = s.node[static_cast<std::size_t>(r / 4)];
     if (!rows.owns(row_node) || held_[s.dof[static_cast<std::size_t>(r)]]) continue;
