@@ -150,13 +150,73 @@ BendMatrix bendHessian(const BendVector& q, Real k_b) {
   return J.transpose() * H * J;
 }
 
+// The clamped Hessian in the bend's own frame. With a = x0 - x2, b = x1 - x0 (lengths l_a, l_b, unit
+// vectors a^, b^), n the unit normal of their plane (any normal of a straight yarn), t_a = n x a^ and
+// t_b = b^ x n, the Hessian of V = k theta^2 / D2 in the orthonormal basis (a^, t_a, b^, t_b, D2)
+// of the plane and (n on a, n on b) out of it is block diagonal (reflection through the plane leaves
+// theta unchanged). With grad theta = -t_a / l_a on a and -t_b / l_b on b, and theta's second
+// derivatives d2/da^ dt_a = 1 / l_a^2, d2/db^ dt_b = 1 / l_b^2, d2/dn_a^2 = cot theta / l_a^2,
+// d2/dn_b^2 = cot theta / l_b^2, d2/dn_a dn_b = -1 / (l_a l_b sin theta) (all others 0):
+//   in the plane (5 x 5): (2k / D2) w w^T + p (e1 e2^T + e2 e1^T) + r (e3 e4^T + e4 e3^T),
+//     w = (0, -1/l_a, 0, -1/l_b, -theta/D2),  p = 2k theta / (D2 l_a^2),  r = 2k theta / (D2 l_b^2);
+//   out of the plane (2 x 2): (2k / D2) (theta / sin theta) [[cos theta / l_a^2, -1 / (l_a l_b)],
+//                                                          [-1 / (l_a l_b), cos theta / l_b^2]].
+// The eigenvalues of a block-diagonal matrix are its blocks' eigenvalues, so clamping the two blocks
+// (a 5 x 5 eigen solve and a closed-form 2 x 2) is the same as clamping the 7 x 7 reduced Hessian in
+// (a, b, D2) (up to rounding; test_yarn_kernels checks it against that), at less cost.
 BendMatrix bendHessianClamped(const BendVector& q, Real k_b) {
-  Mat7 H;
-  bendReduced(q, k_b, nullptr, &H);
-  const Eigen::SelfAdjointEigenSolver<Mat7> es(H);
-  const Mat7 clamped = es.eigenvectors() * es.eigenvalues().cwiseMax(0).asDiagonal() * es.eigenvectors().transpose();
-  const Eigen::Matrix<Real, 7, 12> J = bendReductionJacobian();
-  return J.transpose() * clamped * J;
+  using Mat5 = Eigen::Matrix<Real, 5, 5>;
+  using Mat2 = Eigen::Matrix<Real, 2, 2>;
+  const Vec3 a = q.segment<3>(4) - q.segment<3>(0), b = q.segment<3>(8) - q.segment<3>(4);
+  const Real D2 = q[11] - q[3], la = a.norm(), lb = b.norm();
+  const Vec3 ah = a / la, bh = b / lb, cross = ah.cross(bh);
+  const Real sin_t = cross.norm(), theta = std::atan2(sin_t, ah.dot(bh));
+  Vec3 n = sin_t > 1e-12 ? Vec3(cross / sin_t) : ah.unitOrthogonal();
+  n = (n - n.dot(ah) * ah).normalized();
+  const Vec3 ta = n.cross(ah), tb = bh.cross(n);
+  const Real c1 = 2 * k_b / D2, c2 = c1 * theta;
+  const Real theta_over_sin = theta < 1e-4 ? 1 + theta * theta / 6 : theta / sin_t;
+
+  Eigen::Matrix<Real, 5, 1> w;
+  w << 0, -1 / la, 0, -1 / lb, -theta / D2;
+  Mat5 h5 = c1 * w * w.transpose();
+  h5(0, 1) = h5(1, 0) = c2 / (la * la);
+  h5(2, 3) = h5(3, 2) = c2 / (lb * lb);
+  const Eigen::SelfAdjointEigenSolver<Mat5> es(h5);
+  const Mat5 c5 = es.eigenvectors() * es.eigenvalues().cwiseMax(0).asDiagonal() * es.eigenvectors().transpose();
+
+  Mat2 h2;
+  const Real g = c1 * theta_over_sin;
+  h2 << g * std::cos(theta) / (la * la), -g / (la * lb), -g / (la * lb), g * std::cos(theta) / (lb * lb);
+  // Closed form: eigenvalues m +- d of [[x, y], [y, z]], m = (x + z) / 2, d = sqrt(((x - z) / 2)^2 + y^2).
+  const Real m = 0.5 * (h2(0, 0) + h2(1, 1)), d = std::hypot(0.5 * (h2(0, 0) - h2(1, 1)), h2(0, 1));
+  Mat2 c2x2 = Mat2::Zero();
+  if (m - d >= 0) {
+    c2x2 = h2;
+  } else if (m + d > 0) {  // keep the positive eigenvalue's part: (m + d) v v^T
+    Eigen::Matrix<Real, 2, 1> v(h2(0, 1), m + d - h2(0, 0));  // (H - (m+d) I) v = 0
+    if (v.squaredNorm() < 1e-30 * (h2.squaredNorm() + 1e-300)) v = Eigen::Matrix<Real, 2, 1>(m + d - h2(1, 1), h2(0, 1));
+    if (v.squaredNorm() > 0) c2x2 = (m + d) * v * v.transpose() / v.squaredNorm();
+  }
+
+  // The basis vectors in the stencil's coordinates q = (x2, u2, x0, u0, x1, u1), through
+  // a = x0 - x2, b = x1 - x0, D2 = u1 - u2.
+  Eigen::Matrix<Real, 12, 5> p5 = Eigen::Matrix<Real, 12, 5>::Zero();
+  Eigen::Matrix<Real, 12, 2> p2 = Eigen::Matrix<Real, 12, 2>::Zero();
+  const Vec3 on_a[2] = {ah, ta}, on_b[2] = {bh, tb};
+  for (int k = 0; k < 2; ++k) {
+    p5.block<3, 1>(0, k) = -on_a[k];
+    p5.block<3, 1>(4, k) = on_a[k];
+    p5.block<3, 1>(4, 2 + k) = -on_b[k];
+    p5.block<3, 1>(8, 2 + k) = on_b[k];
+  }
+  p5(3, 4) = -1;
+  p5(11, 4) = 1;
+  p2.block<3, 1>(0, 0) = -n;
+  p2.block<3, 1>(4, 0) = n;
+  p2.block<3, 1>(4, 1) = -n;
+  p2.block<3, 1>(8, 1) = n;
+  return p5 * c5 * p5.transpose() + p2 * c2x2 * p2.transpose();
 }
 
 SegmentVector packSegment(const Vec3& x0, Real u0, const Vec3& x1, Real u1) {

@@ -181,6 +181,33 @@ TEST(YarnBend, ClampedHessianOfAGentleBendStaysCloseToTheExactOne) {
   EXPECT_GT(indefinite, 0);
 }
 
+// bendHessianClamped() clamps the bend's frame blocks; that must be the eigenvalue clamp of the
+// 7 x 7 Hessian in the reduced variables r = (a, b, D2) = (x0 - x2, x1 - x0, u1 - u2), recovered here
+// from the 12 x 12 Hessian through r's Jacobian J (H12 = J^T H7 J, so H7 = J+^T H12 J+).
+TEST(YarnBend, ClampedHessianIsTheEigenvalueClampOfTheReducedHessian) {
+  Eigen::Matrix<Real, 7, 12> J = Eigen::Matrix<Real, 7, 12>::Zero();
+  J.block<3, 3>(0, 0) = -Mat3::Identity();
+  J.block<3, 3>(0, 4) = Mat3::Identity();
+  J.block<3, 3>(3, 4) = -Mat3::Identity();
+  J.block<3, 3>(3, 8) = Mat3::Identity();
+  J(6, 3) = -1;
+  J(6, 11) = 1;
+  const Eigen::Matrix<Real, 12, 7> pinv = J.transpose() * (J * J.transpose()).inverse();
+  std::mt19937 rng(29);
+  for (Real theta : {0.0, 1e-9, 1e-5, 2e-4, 0.01, 0.3, 1.5, 2.5, 3.0}) {
+    for (int trial = 0; trial < 5; ++trial) {
+      const BendVector q = bentStencil(rng, theta);
+      const Eigen::Matrix<Real, 7, 7> h7 = pinv.transpose() * bendHessian(q, kKb) * pinv;
+      ASSERT_LT((J.transpose() * h7 * J - bendHessian(q, kKb)).norm(), 1e-12 * bendHessian(q, kKb).norm());
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<Real, 7, 7>> es(h7);
+      const Eigen::Matrix<Real, 7, 7> c7 = es.eigenvectors() * es.eigenvalues().cwiseMax(0).asDiagonal() * es.eigenvectors().transpose();
+      const BendMatrix reference = J.transpose() * c7 * J, clamped = bendHessianClamped(q, kKb);
+      ASSERT_TRUE(clamped.allFinite()) << "theta " << theta;
+      EXPECT_LT((clamped - reference).norm(), 1e-9 * reference.norm()) << "theta " << theta << ", trial " << trial;
+    }
+  }
+}
+
 TEST(YarnGravity, GradientAndHessianMatchFiniteDifferences) {
   std::mt19937 rng(7);
   const Real rho = 5e-5;
