@@ -127,6 +127,30 @@ Eigen::Matrix<Real, 7, 12> bendReductionJacobian() {
   return J;
 }
 
+// J^T h J for J = bendReductionJacobian(): each stencil coordinate is +-1 times one or two reduced
+// ones, so the product is a signed sum of h's entries (cheaper than Eigen's general product kernel,
+// which these sizes would reach).
+BendMatrix fromReducedHessian(const Mat7& h) {
+  // Per stencil coordinate: up to two (reduced coordinate, sign) pairs; -1 = none.
+  static constexpr int kR[12][2] = {{0, -1}, {1, -1}, {2, -1}, {6, -1}, {0, 3}, {1, 4}, {2, 5}, {-1, -1},
+                                    {3, -1}, {4, -1}, {5, -1}, {6, -1}};
+  static constexpr Real kS[12][2] = {{-1, 0}, {-1, 0}, {-1, 0}, {-1, 0}, {1, -1}, {1, -1}, {1, -1}, {0, 0},
+                                     {1, 0},  {1, 0},  {1, 0},  {1, 0}};
+  Eigen::Matrix<Real, 7, 12> hj;  // h J
+  for (int j = 0; j < 12; ++j) {
+    hj.col(j).setZero();
+    for (int k = 0; k < 2; ++k)
+      if (kR[j][k] >= 0) hj.col(j) += kS[j][k] * h.col(kR[j][k]);
+  }
+  BendMatrix out;
+  for (int i = 0; i < 12; ++i) {
+    out.row(i).setZero();
+    for (int k = 0; k < 2; ++k)
+      if (kR[i][k] >= 0) out.row(i) += kS[i][k] * hj.row(kR[i][k]);
+  }
+  return out;
+}
+
 }  // namespace
 
 BendVector packBendStencil(const Vec3& x2, Real u2, const Vec3& x0, Real u0, const Vec3& x1, Real u1) {
@@ -146,8 +170,7 @@ BendVector bendGradient(const BendVector& q, Real k_b) {
 BendMatrix bendHessian(const BendVector& q, Real k_b) {
   Mat7 H;
   bendReduced(q, k_b, nullptr, &H);
-  const Eigen::Matrix<Real, 7, 12> J = bendReductionJacobian();
-  return J.transpose() * H * J;
+  return fromReducedHessian(H);
 }
 
 // The clamped Hessian in the bend's own frame. With a = x0 - x2, b = x1 - x0 (lengths l_a, l_b, unit
@@ -199,24 +222,20 @@ BendMatrix bendHessianClamped(const BendVector& q, Real k_b) {
     if (v.squaredNorm() > 0) c2x2 = (m + d) * v * v.transpose() / v.squaredNorm();
   }
 
-  // The basis vectors in the stencil's coordinates q = (x2, u2, x0, u0, x1, u1), through
-  // a = x0 - x2, b = x1 - x0, D2 = u1 - u2.
-  Eigen::Matrix<Real, 12, 5> p5 = Eigen::Matrix<Real, 12, 5>::Zero();
-  Eigen::Matrix<Real, 12, 2> p2 = Eigen::Matrix<Real, 12, 2>::Zero();
-  const Vec3 on_a[2] = {ah, ta}, on_b[2] = {bh, tb};
-  for (int k = 0; k < 2; ++k) {
-    p5.block<3, 1>(0, k) = -on_a[k];
-    p5.block<3, 1>(4, k) = on_a[k];
-    p5.block<3, 1>(4, 2 + k) = -on_b[k];
-    p5.block<3, 1>(8, 2 + k) = on_b[k];
-  }
-  p5(3, 4) = -1;
-  p5(11, 4) = 1;
-  p2.block<3, 1>(0, 0) = -n;
-  p2.block<3, 1>(4, 0) = n;
-  p2.block<3, 1>(4, 1) = -n;
-  p2.block<3, 1>(8, 1) = n;
-  return p5 * c5 * p5.transpose() + p2 * c2x2 * p2.transpose();
+  // The basis vectors in the reduced coordinates r = (a, b, D2), then to the stencil's.
+  Eigen::Matrix<Real, 7, 5> q5 = Eigen::Matrix<Real, 7, 5>::Zero();
+  Eigen::Matrix<Real, 7, 2> q2 = Eigen::Matrix<Real, 7, 2>::Zero();
+  q5.block<3, 1>(0, 0) = ah;
+  q5.block<3, 1>(0, 1) = ta;
+  q5.block<3, 1>(3, 2) = bh;
+  q5.block<3, 1>(3, 3) = tb;
+  q5(6, 4) = 1;
+  q2.block<3, 1>(0, 0) = n;
+  q2.block<3, 1>(3, 1) = n;
+  const Eigen::Matrix<Real, 7, 5> q5c5 = q5 * c5;
+  const Eigen::Matrix<Real, 7, 2> q2c2 = q2 * c2x2;
+  const Mat7 c7 = q5c5.lazyProduct(q5.transpose()) + q2c2.lazyProduct(q2.transpose());
+  return fromReducedHessian(c7);
 }
 
 SegmentVector packSegment(const Vec3& x0, Real u0, const Vec3& x1, Real u1) {
