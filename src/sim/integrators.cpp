@@ -16,6 +16,7 @@
 #include "sparse_ldlt.h"
 #include "system_preconditioner.h"
 #include "parallel_size.h"
+#include "parallel_vector_ops.h"
 
 namespace textile_handling {
 
@@ -244,8 +245,8 @@ class SemiImplicitEuler : public ImplicitEulerBase {
           return false;
         }
         const Real alpha = rz / pAp;
-        y += alpha * p_;
-        r -= alpha * Ap_;
+        addScaled(y, alpha, p_);
+        addScaled(r, -alpha, Ap_);
         ++it;
         rnorm = std::sqrt(deterministicDot(r, r));
         if (rnorm <= stop) {
@@ -254,7 +255,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
         }
         preconditioner_.apply(r, z_);
         const Real rz_new = deterministicDot(r, z_);
-        p_ = z_ + (rz_new / rz) * p_;
+        scaleAndAdd(p_, rz_new / rz, z_);  // p = z + (rz_new / rz) p
         rz = rz_new;
       }
     }

@@ -5,6 +5,7 @@
 
 #include "block_rows_product.h"
 #include "parallel_size.h"
+#include "parallel_vector_ops.h"
 
 namespace textile_handling {
 
@@ -146,7 +147,7 @@ class CoarseLevel {
   // the correction made, at the cost of A P's few blocks per row instead of a product with A.
   void subtractCoarseProduct(VecX& t) {
     multiplyBlockRows(ap_start_, ap_col_, ap_, b_, zc_, ap_zc_);
-    t -= ap_zc_;
+    addScaled(t, -1, ap_zc_);
   }
 
   Index numAggregates() const { return num_agg_; }
@@ -260,7 +261,7 @@ void SystemPreconditioner::apply(const VecX& r, VecX& z) {
   jacobi_.apply(r, z, w, false);
   for (int s = 1; s < nu; ++s) {
     applyA(z, t_);
-    t_ = r - t_;
+    subtractFrom(t_, r);  // t = r - t
     jacobi_.apply(t_, z, w, true);
   }
   applyA(z, t_);
@@ -271,7 +272,7 @@ void SystemPreconditioner::apply(const VecX& r, VecX& z) {
   jacobi_.apply(t_, z, w, true);
   for (int s = 1; s < nu; ++s) {
     applyA(z, t_);
-    t_ = r - t_;
+    subtractFrom(t_, r);  // t = r - t
     jacobi_.apply(t_, z, w, true);
   }
 }
