@@ -1,10 +1,12 @@
 // Tests of BlockLdlt (src/sim/block_ldlt.h), the coarse level's block LDL^T: solutions against dense
 // and scalar sparse (BlockSparseLdlt) references on random and grid patterns for block sizes 1 to 6, the
 // analysis reused for new values, indefinite matrices refused without spoiling the next factorisation,
+// the two subtrees factorised and solved side by side with the same results on one and two threads,
 // and misuse.
 #include "../../src/sim/block_ldlt.h"
 #include "../../src/sim/sparse_ldlt.h"
 #include "textile_handling/sim/sim_errors.h"
+#include "../test_support.h"
 #include "sim_test_support.h"
 
 #include <gtest/gtest.h>
@@ -92,6 +94,33 @@ TEST(BlockLdlt, MatchesTheScalarFactorisationOnAGridAndReusesItsAnalysis) {
     if (round == 0) first = x;
     else EXPECT_GT((x - first).norm(), 0.1 * first.norm());  // the new values were used
   }
+}
+
+// A grid large enough for the parallel path (50 x 50 blocks of 5): the elimination tree splits into
+// two groups of subtrees that carry most of the rows, the rest is their ancestors; the factor and the
+// solution are bitwise the same on one and two threads and solve the system.
+TEST(BlockLdlt, SubtreesRunSideBySideWithTheSameResultsOnOneAndTwoThreads) {
+  GridSystem g(50, 50, 5, 13);
+  const std::array<Index, 3> parts = g.ldlt.partSizes();
+  EXPECT_EQ(parts[0] + parts[1] + parts[2], g.pattern.numNodes());
+  EXPECT_GT(parts[0], g.pattern.numNodes() / 4);
+  EXPECT_GT(parts[1], g.pattern.numNodes() / 4);
+  EXPECT_LT(parts[2], g.pattern.numNodes() / 4);
+  fillSymmetric(g.gen, g.a, true);
+  const VecX rhs = sim_test_support::randomVector(g.pattern.numNodes() * 5, g.gen());
+  auto solveOn = [&](int threads) {
+    test_support::ThreadScope scope(threads);
+    EXPECT_TRUE(g.ldlt.factorize(g.a));
+    return g.solveChecked(rhs);
+  };
+  const VecX one = solveOn(1), two = solveOn(2);
+  EXPECT_TRUE(one == two);
+  BlockSparseLdlt scalar;
+  scalar.setPattern(g.pattern);
+  ASSERT_TRUE(scalar.factorize(g.a, {}));
+  VecX reference;
+  scalar.solve(rhs, reference);
+  EXPECT_LE((two - reference).norm(), 1e-11 * reference.norm());
 }
 
 TEST(BlockLdlt, RefusesAnIndefiniteMatrixAndRecoversOnTheNext) {
