@@ -5,6 +5,7 @@
 #include <sstream>
 
 #include "textile_handling/sim/integrators.h"  // deterministicDot
+#include "parallel_vector_ops.h"
 #include "system_preconditioner.h"
 
 namespace textile_handling {
@@ -94,9 +95,9 @@ ConjugateResidualResult ConjugateResidualSolver::solve(const VecX& b, VecX& y, R
       return out;
     }
     const Real alpha = rho / sigma;
-    y += alpha * s.p;
-    s.r -= alpha * s.ap;
-    s.z -= alpha * s.q;
+    addScaled(y, alpha, s.p);
+    addScaled(s.r, -alpha, s.ap);
+    addScaled(s.z, -alpha, s.q);
     ++out.iterations;
     out.residual_norm = std::sqrt(deterministicDot(s.r, s.r));
     if (!std::isfinite(out.residual_norm)) {
@@ -110,8 +111,8 @@ ConjugateResidualResult ConjugateResidualSolver::solve(const VecX& b, VecX& y, R
     s.applyA(s.z, s.az);
     const Real rho_new = deterministicDot(s.z, s.az);
     const Real beta = rho_new / rho;
-    s.p = s.z + beta * s.p;
-    s.ap = s.az + beta * s.ap;
+    scaleAndAdd(s.p, beta, s.z);  // p = z + beta p
+    scaleAndAdd(s.ap, beta, s.az);
     rho = rho_new;
   }
   if (accept_tolerance > 0 && out.residual_norm <= accept_tolerance * out.rhs_norm) {
