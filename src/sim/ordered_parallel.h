@@ -63,40 +63,12 @@ class RowRangeSchedule {
   std::vector<std::vector<std::uint32_t>> items_;
 };
 
-namespace ordered_parallel_detail {
-
-/// Splits [0, count) into chunks of `chunk` items; for each chunk, compute(i, local) fills the chunk's
-/// buffer in parallel and then apply_chunk(start, n, buffer) consumes it.
-template <class Local, class Compute, class ApplyChunk>
-void forEachComputedChunk(std::size_t count, std::size_t chunk, Compute& compute, ApplyChunk&& apply_chunk) {
-  if (count == 0) return;
-  std::vector<Local> buffer(std::min(count, chunk));
-  for (std::size_t start = 0; start < count; start += chunk) {
-    const std::ptrdiff_t n = static_cast<std::ptrdiff_t>(std::min(chunk, count - start));
-#pragma omp parallel for schedule(static) if (n > 64)
-    for (std::ptrdiff_t k = 0; k < n; ++k) compute(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
-    apply_chunk(start, n, buffer);
-  }
-}
-
-}  // namespace ordered_parallel_detail
-
-/// For i = 0 .. count - 1: compute(i, local) fills `local` (a default-constructed Local) in parallel,
-/// then apply(i, local) runs serially in increasing i. Works in chunks of `chunk` items so the buffer
-/// stays small (chunk Locals). compute must not write shared state; apply may.
-template <class Local, class Compute, class Apply>
-void computeInParallelApplyInOrder(std::size_t count, Compute&& compute, Apply&& apply, std::size_t chunk = 2048) {
-  ordered_parallel_detail::forEachComputedChunk<Local>(
-      count, chunk, compute, [&](std::size_t start, std::ptrdiff_t n, const std::vector<Local>& buffer) {
-        for (std::ptrdiff_t k = 0; k < n; ++k) apply(start + static_cast<std::size_t>(k), buffer[static_cast<std::size_t>(k)]);
-      });
-}
-
-/// As computeInParallelApplyInOrder(), but computing and adding run together on every thread: thread
-/// t walks the items that add to its range of rows (RowRangeSchedule) in increasing order, and for
-/// each calls compute(i, local) and then apply(i, local, share), which must add only the entries of
-/// rows share.owns(). Each entry still receives its terms in item order, so the sums are those of the
-/// serial loop on any thread count. `schedule` is rebuilt here (outside the parallel region) when the
+/// For i = 0 .. count - 1, compute(i, local) fills `local` (a default-constructed Local) and
+/// apply(i, local, share) adds it, on all threads: thread t walks the items that add to its range of
+/// rows (RowRangeSchedule) in increasing order, computing and adding each, and apply must add only the
+/// entries of rows share.owns(). Each entry still receives its terms in item order, so the sums are
+/// those of the serial loop (for i: compute, apply) on any thread count. compute must not write
+/// shared state. `schedule` is rebuilt here (outside the parallel region) when the
 /// item count, the row count or the thread count has changed; rows_of as in RowRangeSchedule::build.
 /// Below `serial_below` items the loop runs serially on the calling thread.
 template <class Local, class RowsOf, class Compute, class ApplyRows>

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -239,6 +240,28 @@ void YarnWovenModel::addStencilMatrices(const std::vector<Stencil>& list, Real s
       });
 }
 
+template <int Nodes, class Kernel>
+void YarnWovenModel::addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>& degenerate,
+                                       Kernel&& kernel) const {
+  using Vector = Eigen::Matrix<Real, 4 * Nodes, 1>;
+  computeInParallelApplyByRowRanges<Vector>(
+      schedule(list), list.size(), static_cast<Index>(sheet_.nodeCount()),
+      [&](std::size_t k, auto&& visit) {
+        for (int i = 0; i < Nodes; ++i) visit(list[k].node[static_cast<std::size_t>(i)]);
+      },
+      [&](std::size_t k, Vector& g) { g = kernel(list[k]); },
+      [&](std::size_t k, const Vector& g, const RowShare& rows) {
+        const Stencil& s = list[k];
+        if (!g.allFinite()) {
+          if (rows.owns(s.node[0])) ++degenerate;  // counted once, by the first node's thread
+          return;
+        }
+        for (int i = 0; i < Nodes; ++i)
+          if (rows.owns(s.node[static_cast<std::size_t>(i)]))
+            for (int c = 0; c < 4; ++c) out[static_cast<Eigen::Index>(s.dof[static_cast<std::size_t>(4 * i + c)])] += g[4 * i + c];
+      });
+}
+
 void YarnWovenModel::assembleHessian(const VecX& q, bool clamped, Real scale, BlockSparseMatrix& a) const {
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness();
   addStencilMatrices<2>(segments_, scale, true, a, [&](const Stencil& s) {
@@ -288,32 +311,23 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   VecX grad = VecX::Zero(q.size());
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
   // A gradient with a NaN marks a degenerate term: material slid out of the segment, or zero length.
-  computeInParallelApplyInOrder<yarn::SegmentVector>(
-      segments_.size(),
-      [&](std::size_t k, yarn::SegmentVector& g) {
-        const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(segments_[k]));
-        // A torn segment keeps only its gravity: the weight of its two halves (yarn_woven_tearing.cpp).
-        g = segments_[k].torn ? yarn::SegmentVector(yarn::SegmentVector::Zero()) : yarn::stretchGradient(e, k_s);
-        if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
-        if (!(e[7] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
-      },
-      [&](std::size_t k, const yarn::SegmentVector& g) {
-        if (g.allFinite()) yarn_stencil::scatterAdd<2>(g, dofsOf<2>(segments_[k]), &grad);
-        else ++report.degenerate_terms;
-      });
-  computeInParallelApplyInOrder<yarn::BendVector>(
-      bends_.size(),
-      [&](std::size_t k, yarn::BendVector& g) {
-        if (bends_[k].torn) return;
-        const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(bends_[k]));
-        g = yarn::bendGradient(e, k_b);
-        if (!(e[11] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
-      },
-      [&](std::size_t k, const yarn::BendVector& g) {
-        if (bends_[k].torn) return;
-        if (g.allFinite()) yarn_stencil::scatterAdd<3>(g, dofsOf<3>(bends_[k]), &grad);
-        else ++report.degenerate_terms;
-      });
+  std::atomic<Index> degenerate{0};
+  addStencilVectors<2>(segments_, grad, degenerate, [&](const Stencil& s) {
+    const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
+    // A torn segment keeps only its gravity: the weight of its two halves (yarn_woven_tearing.cpp).
+    yarn::SegmentVector g = s.torn ? yarn::SegmentVector(yarn::SegmentVector::Zero()) : yarn::stretchGradient(e, k_s);
+    if (options_.gravity) g += yarn::gravityGradient(e, rho, gravity_);
+    if (!(e[7] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
+    return g;
+  });
+  addStencilVectors<3>(bends_, grad, degenerate, [&](const Stencil& s) {
+    if (s.torn) return yarn::BendVector(yarn::BendVector::Zero());
+    const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(s));
+    yarn::BendVector g = yarn::bendGradient(e, k_b);
+    if (!(e[11] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
+    return g;
+  });
+  report.degenerate_terms += degenerate.load();
   f = -grad;
   // The normal compression is lagged: evaluated at the first state the model sees and then once per
   // accepted step (acceptStep), never inside a step.

@@ -174,6 +174,30 @@ TEST(YarnWovenModel, ForcesJacobiansAndMassAreBitwiseTheSameOnOneAndTwoThreads) 
   }
 }
 
+// Material slid out of segments (u1 - u0 <= 0) at the node where two threads' rows meet: each
+// degenerate stencil is left out and counted once, the same on one, two and three threads.
+TEST(YarnWovenModel, DegenerateStencilsAreCountedOnceOnAnyThreadCount) {
+  DrapeSceneSpec s = sim_test_support::heldSquareSpec(0.2, 0.005);
+  s.model = yarnSpec();
+  auto evaluate = [&](int threads) {
+    ThreadScope scope(threads);
+    DrapeScene scene = buildDrapeScene(s);
+    ClothModel& m = *scene.model;
+    VecX x = scene.x0;
+    const Index middle = m.numNodes() / 2;
+    for (int c : {3, 4}) x[middle * 5 + c] -= 0.02;  // 4 spacings behind its neighbours
+    VecX f;
+    ForceJacobians jac = m.makeJacobians();
+    const ForceReport r = m.computeForces(x, VecX::Zero(x.size()), f, &jac);
+    EXPECT_TRUE(f.allFinite());
+    return r.degenerate_terms;
+  };
+  const Index one = evaluate(1);
+  EXPECT_GE(one, 2);  // at least a warp and a weft segment
+  EXPECT_EQ(evaluate(2), one);
+  EXPECT_EQ(evaluate(3), one);
+}
+
 // The whole step (model, two-level preconditioned CG) is deterministic across thread counts.
 TEST(YarnWovenModel, StepsAreBitwiseTheSameOnOneAndTwoThreads) {
   DrapeSceneSpec s = sim_test_support::heldSquareSpec(0.2, 0.005);

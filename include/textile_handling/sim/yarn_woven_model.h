@@ -11,6 +11,7 @@
 #pragma once
 
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <limits>
 #include <memory>
@@ -250,6 +251,11 @@ class YarnWovenModel : public ClothModel {
   /// Adds scale kernel(s) (a 4 Nodes x 4 Nodes matrix) of every untorn stencil s of `list` into a, on
   /// all threads in stencil order (ordered_parallel.h); with skip_non_finite, a matrix with a NaN or
   /// infinity (a degenerate term) is left out instead of added.
+  /// Adds kernel(s) (4 Nodes entries, a torn stencil's included) of every stencil s of `list` into
+  /// `out` on all threads in stencil order; a vector with a NaN or infinity is left out and counted
+  /// in `degenerate`.
+  template <int Nodes, class Kernel>
+  void addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>& degenerate, Kernel&& kernel) const;
   template <int Nodes, class Kernel>
   void addStencilMatrices(const std::vector<Stencil>& list, Real scale, bool skip_non_finite, BlockSparseMatrix& a,
                           Kernel&& kernel) const;
