@@ -129,7 +129,7 @@ Real YarnWovenModel::crossingEnergy(const VecX& q) const {
 void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, BlockSparseMatrix* dfdx,
                                        BlockSparseMatrix* dfdv, bool clamped, int terms, Real scale) const {
   const bool friction = options_.crossing.friction && (terms & kFrictionTerms);
-  const bool conservative = terms & kConservativeTerms;
+  const bool conservative = terms & kConservativeTerms, conservative_forces = conservative || (terms & kConservativeForceTerms);
   // Adds factor m into the position blocks of the pair's rows that `rows` owns.
   auto addPositions = [&](const ShearPair& p, const yarn::CrossingMatrix& m, Real factor, const RowShare& rows) {
     for (int a = 0; a < 3; ++a) {
@@ -153,9 +153,9 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
     yarn::CrossingMatrix hessian;
     yarn::ShearFriction friction;
   };
-  const bool with_f = conservative && f, with_dfdx = conservative && dfdx;
+  const bool with_f = conservative_forces && f, with_dfdx = conservative && dfdx;
   computeInParallelApplyByRowRanges<PairTerms>(
-      shearPairSchedule(), conservative || friction ? shear_pairs_.size() : 0, static_cast<Index>(sheet_.nodeCount()),
+      shearPairSchedule(), conservative_forces || friction ? shear_pairs_.size() : 0, static_cast<Index>(sheet_.nodeCount()),
       [&](std::size_t k, auto&& visit) {
         for (Index node : shear_pairs_[k].node) visit(node);
       },
@@ -178,14 +178,14 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
         if (f) addForce(p, t.friction.force, 1, rows);
         if (dfdx) addPositions(p, t.friction.jacobian, scale, rows);
       });
-  for (std::size_t k = 0; conservative && k < contacts_.size(); ++k) {
+  for (std::size_t k = 0; conservative_forces && k < contacts_.size(); ++k) {
     const ContactPair& p = contacts_[k];
     const Real u0 = q[static_cast<Eigen::Index>(p.dof[0])], u1 = q[static_cast<Eigen::Index>(p.dof[1])];
     if (p.torn || u1 - u0 >= p.distance) continue;
     const yarn::ContactVector g = yarn::parallelContactGradient(u0, u1, k_c_, spacing_, p.distance);
     if (f)
       for (int i = 0; i < 2; ++i) (*f)[static_cast<Eigen::Index>(p.dof[static_cast<std::size_t>(i)])] -= g[i];
-    if (dfdx) {
+    if (dfdx && conservative) {
       const yarn::ContactMatrix h = yarn::parallelContactHessian(u0, u1, k_c_, spacing_, p.distance);
       for (int i = 0; i < 2; ++i)
         for (int j = 0; j < 2; ++j) {

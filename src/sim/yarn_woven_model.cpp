@@ -333,9 +333,6 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   // accepted step (acceptStep), never inside a step.
   if (compression_.empty()) updateCompression(q);
   const bool clamped = !options_.exact_hessian;
-  addCrossingForces(q, v, &f, nullptr, nullptr, clamped, kAllCrossingTerms, 1);
-  if (!self_contacts_detected_) detectSelfContacts(x);  // lagged like F_n
-  addSelfContactForces(x, v, &f, nullptr, nullptr);
 
   // The clamped Hessian K of the elastic terms (stretch, bending, shear, contact): minus the clamped
   // df/dx (with gravity's Hessian), and the stiffness of the Rayleigh damping
@@ -343,6 +340,9 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   // x_n, held over the step: F_d is then linear in v and independent of x within a step, so Newton's
   // Jacobian is exact for it (K(x) is only piecewise smooth, being clamped, and its derivative is not
   // assembled). The semi-implicit step, which evaluates forces at x_n only, is unchanged by this.
+  // The Jacobians are set up before the crossing forces so that, when clamped, one pass over the
+  // crossings adds their forces and their friction Jacobians; every entry of f, df/dx and df/dv still
+  // receives its terms in the same order as in separate passes.
   const Real alpha = fabric_.damping_mass_per_s, beta = fabric_.damping_stiffness_s;
   const bool refresh_damping = damping_stale_;
   if (refresh_damping) damping_positions_ = x;
@@ -355,16 +355,6 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     addCrossingForces(q, v, nullptr, &target, nullptr, true, kConservativeTerms, -1);
     k_now = &target;
   }
-  // Damping as two products (beta K v + alpha M v): no third matrix is formed.
-  if (beta > 0) {
-    damping_stiffness_.multiply(v, damping_);
-    f -= beta * damping_;
-  }
-  if (alpha > 0) {
-    multiplyMass(damping_positions_, v, damping_);
-    f -= alpha * damping_;
-  }
-  for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
   if (jac) {
     if (clamped) {
       scaleInto(*k_now, -1, jac->dfdx);
@@ -381,7 +371,26 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     if (alpha > 0) addMassMatrix(damping_positions_, -alpha, jac->dfdv);
     // The held DOFs' mass entries are not damping: a held DOF has no force.
     for (std::size_t d : sheet_.held_dofs) diagonalEntry(jac->dfdv, d) = 0;
-    addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
+  }
+  const bool one_crossing_pass = jac && clamped;
+  if (one_crossing_pass)
+    addCrossingForces(q, v, &f, &jac->dfdx, &jac->dfdv, clamped, kConservativeForceTerms | kFrictionTerms, 1);
+  else
+    addCrossingForces(q, v, &f, nullptr, nullptr, clamped, kAllCrossingTerms, 1);
+  if (!self_contacts_detected_) detectSelfContacts(x);  // lagged like F_n
+  addSelfContactForces(x, v, &f, nullptr, nullptr);
+  // Damping as two products (beta K v + alpha M v): no third matrix is formed.
+  if (beta > 0) {
+    damping_stiffness_.multiply(v, damping_);
+    f -= beta * damping_;
+  }
+  if (alpha > 0) {
+    multiplyMass(damping_positions_, v, damping_);
+    f -= alpha * damping_;
+  }
+  for (std::size_t d : sheet_.held_dofs) f[static_cast<Eigen::Index>(d)] = 0;
+  if (jac) {
+    if (!one_crossing_pass) addCrossingForces(q, v, nullptr, &jac->dfdx, &jac->dfdv, clamped, kFrictionTerms, 1);
     addSelfContactForces(x, v, nullptr, &jac->dfdx, &jac->dfdv);
   }
   return report;

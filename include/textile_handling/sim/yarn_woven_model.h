@@ -197,8 +197,9 @@ class YarnWovenModel : public ClothModel {
   /// The pair's shear term: k_x (1 + c_n F_n), L, phi_j, c_j and whether it jams.
   yarn::ShearParameters shearParameters(const ShearPair& p, Real F_n) const;
   Real crossingEnergy(const VecX& q) const;
-  /// Which crossing terms addCrossingForces() adds.
-  enum CrossingTerms { kConservativeTerms = 1, kFrictionTerms = 2, kAllCrossingTerms = 3 };
+  /// Which crossing terms addCrossingForces() adds: the conservative ones (forces and Jacobians, or
+  /// with kConservativeForceTerms their forces only) and friction (forces and Jacobians).
+  enum CrossingTerms { kConservativeTerms = 1, kFrictionTerms = 2, kAllCrossingTerms = 3, kConservativeForceTerms = 4 };
   /// Adds the chosen crossing terms' forces into f (all DOFs; held ones are zeroed by the caller) and,
   /// with `dfdx` / `dfdv`, their Jacobians times `scale` (held rows and columns left out).
   void addCrossingForces(const VecX& q, const VecX& v, VecX* f, BlockSparseMatrix* dfdx, BlockSparseMatrix* dfdv,
