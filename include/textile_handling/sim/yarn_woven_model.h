@@ -249,14 +249,14 @@ class YarnWovenModel : public ClothModel {
   template <int Nodes, class Matrix>
   /// Adds scale m into a's blocks of the stencil's free DOFs, in the rows of nodes `rows` owns only.
   void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, const RowShare& rows) const;
-  /// Adds scale kernel(s) (a 4 Nodes x 4 Nodes matrix) of every untorn stencil s of `list` into a, on
-  /// all threads in stencil order (ordered_parallel.h); with skip_non_finite, a matrix with a NaN or
-  /// infinity (a degenerate term) is left out instead of added.
   /// Adds kernel(s) (4 Nodes entries, a torn stencil's included) of every stencil s of `list` into
-  /// `out` on all threads in stencil order; a vector with a NaN or infinity is left out and counted
-  /// in `degenerate`.
+  /// `out` on all threads in stencil order (ordered_parallel.h); a vector with a NaN or infinity is
+  /// left out and counted in `degenerate`.
   template <int Nodes, class Kernel>
   void addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>& degenerate, Kernel&& kernel) const;
+  /// Adds scale kernel(s) (a 4 Nodes x 4 Nodes matrix) of every untorn stencil s of `list` into a, on
+  /// all threads in stencil order; with skip_non_finite, a matrix with a NaN or infinity (a degenerate
+  /// term) is left out instead of added.
   template <int Nodes, class Kernel>
   void addStencilMatrices(const std::vector<Stencil>& list, Real scale, bool skip_non_finite, BlockSparseMatrix& a,
                           Kernel&& kernel) const;
@@ -293,8 +293,9 @@ class YarnWovenModel : public ClothModel {
   std::vector<yarn::PenaltyContact> self_contacts_;
   bool self_contacts_detected_ = false;
   Real gamma_ = 0, k_p_ = 0, d_p_ = 0, mu_p_ = 0;
-  // Which thread adds which stencils' rows (ordered_parallel.h), per stencil list; rebuilt on use when
-  // the thread count changes, so mutable. Not shared between models.
+  // Which thread adds which stencils' rows (ordered_parallel.h): one schedule per stencil list
+  // (segments, bends, shear pairs), rebuilt on use when the thread count changes; owned through a
+  // pointer so that const methods can rebuild it. Not shared between models.
   struct StencilSchedules;
   std::unique_ptr<StencilSchedules> schedules_;
   RowRangeSchedule& schedule(const std::vector<Stencil>& list) const;
