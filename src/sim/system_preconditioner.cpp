@@ -265,7 +265,7 @@ void SystemPreconditioner::apply(const VecX& r, VecX& z) {
     jacobi_.apply(t_, z, w, true);
   }
   applyA(z, t_);
-  t_ = r - t_;
+  subtractFrom(t_, r);  // t = r - t
   coarse_->addCoarseCorrection(t_, z);
   // The first post-smoothing residual r - A (z + P zc) = t - (A P) zc, without a product with A.
   coarse_->subtractCoarseProduct(t_);
