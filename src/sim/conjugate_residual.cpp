@@ -26,10 +26,7 @@ struct ConjugateResidualSolver::Impl {
       if (pinned[i]) x.segment(i * block, block).setZero();
   }
   // out = A_ff in (`in` is zero on the pinned DOFs; the pinned rows of `out` are zeroed).
-  void applyA(const VecX& in, VecX& out) const {
-    a->multiply(in, out);
-    filter(out);
-  }
+  void applyA(const VecX& in, VecX& out) const { preconditioner.applySystem(in, out); }
   // New search direction from the current residual: z = P r, p = z, Ap = Az; returns rho = z^T A z.
   Real restart() {
     preconditioner.apply(r, z);

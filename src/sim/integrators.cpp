@@ -191,10 +191,7 @@ class SemiImplicitEuler : public ImplicitEulerBase {
       if (mask_[i]) y.segment(i * b, b).setZero();
   }
   // out = A_ff in (pinned rows zeroed; `in` is zero on pinned DOFs).
-  void applyA(const VecX& in, VecX& out) const {
-    system_.multiply(in, out);
-    filter(out);
-  }
+  void applyA(const VecX& in, VecX& out) const { preconditioner_.applySystem(in, out); }
   bool solvePCG(const VecX& bf, Real h, VecX& y, StepOutcome* out) {
     const Index dofs = bf.size();
     // The coarse level needs a positive definite Galerkin matrix; when it is not (possible with an

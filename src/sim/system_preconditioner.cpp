@@ -213,13 +213,13 @@ SystemPreconditioner::~SystemPreconditioner() = default;
 bool SystemPreconditioner::update(const BlockSparseMatrix& a, const std::vector<char>& node_pinned,
                                   PreconditionerKind kind, int smoothing_steps, Real smoothing_weight,
                                   BlockJacobi::Inverse inverse) {
-  a_ = &a;
   block_ = a.pattern().blockSize();
   pinned_ = node_pinned;
   pinned_.resize(static_cast<std::size_t>(a.pattern().numNodes()), 0);
   smoothing_steps_ = std::max(0, smoothing_steps);
   smoothing_weight_ = smoothing_weight;
   use_coarse_ = false;
+  system_copy_.assign(a);
   if (!jacobi_.update(a, pinned_, inverse)) return false;
   if (kind == PreconditionerKind::kTwoLevel) {
     if (!coarse_->matches(a.pattern(), pinned_)) coarse_->setup(a.pattern(), pinned_);
@@ -238,8 +238,8 @@ bool SystemPreconditioner::dropSmoothing() {
   return true;
 }
 
-void SystemPreconditioner::applyA(const VecX& in, VecX& out) const {
-  a_->multiply(in, out);
+void SystemPreconditioner::applySystem(const VecX& in, VecX& out) const {
+  system_copy_.multiply(in, out);
   const Index n = static_cast<Index>(pinned_.size());
   for (Index i = 0; i < n; ++i)
     if (pinned_[static_cast<std::size_t>(i)]) out.segment(i * block_, block_).setZero();
@@ -260,18 +260,18 @@ void SystemPreconditioner::apply(const VecX& r, VecX& z) {
   // Symmetric V(nu, nu) cycle with damped block-Jacobi smoothing.
   jacobi_.apply(r, z, w, false);
   for (int s = 1; s < nu; ++s) {
-    applyA(z, t_);
+    applySystem(z, t_);
     subtractFrom(t_, r);  // t = r - t
     jacobi_.apply(t_, z, w, true);
   }
-  applyA(z, t_);
+  applySystem(z, t_);
   subtractFrom(t_, r);  // t = r - t
   coarse_->addCoarseCorrection(t_, z);
   // The first post-smoothing residual r - A (z + P zc) = t - (A P) zc, without a product with A.
   coarse_->subtractCoarseProduct(t_);
   jacobi_.apply(t_, z, w, true);
   for (int s = 1; s < nu; ++s) {
-    applyA(z, t_);
+    applySystem(z, t_);
     subtractFrom(t_, r);  // t = r - t
     jacobi_.apply(t_, z, w, true);
   }

@@ -16,6 +16,7 @@
 #include "textile_handling/sim/types.h"
 #include "block_jacobi.h"
 #include "block_ldlt.h"
+#include "compact_block_matrix.h"
 
 namespace textile_handling {
 
@@ -28,8 +29,8 @@ class SystemPreconditioner {
   SystemPreconditioner(const SystemPreconditioner&) = delete;
   SystemPreconditioner& operator=(const SystemPreconditioner&) = delete;
 
-  /// Prepares z = M^-1 r for A (kept by pointer until the next update) without the nodes flagged in
-  /// node_pinned (copied). `kind`, `smoothing_steps` and `smoothing_weight` as in SolverSettings;
+  /// Prepares z = M^-1 r and the products with A (kept by pointer, and not to be changed, until the
+  /// next update) without the nodes flagged in node_pinned (copied). `kind`, `smoothing_steps` and `smoothing_weight` as in SolverSettings;
   /// `inverse` says how the diagonal blocks are inverted. The coarse level is used only when its
   /// Galerkin matrix is positive definite (usesCoarseLevel()). False if a diagonal block is singular
   /// or not finite.
@@ -37,6 +38,9 @@ class SystemPreconditioner {
               int smoothing_steps, Real smoothing_weight, BlockJacobi::Inverse inverse);
   /// z = M^-1 r (size: the DOFs of A; zero on pinned nodes; r must be zero on pinned nodes).
   void apply(const VecX& r, VecX& z);
+  /// out = A_ff in for the solvers, from the copy of A made by update() (compact_block_matrix.h); `in`
+  /// must be zero on pinned nodes, whose rows of `out` are zeroed.
+  void applySystem(const VecX& in, VecX& out) const;
   /// Switches the V-cycle to the additive form (always positive definite when the diagonal-block
   /// inverses and the coarse matrix are) until the next update. False if there was nothing to drop.
   bool dropSmoothing();
@@ -46,14 +50,12 @@ class SystemPreconditioner {
   std::vector<Index> aggregateOfNode() const;
 
  private:
-  void applyA(const VecX& in, VecX& out) const;  // out = A_ff in
-
-  const BlockSparseMatrix* a_ = nullptr;
   std::vector<char> pinned_;
   int block_ = 3;
   int smoothing_steps_ = 0;
   Real smoothing_weight_ = 1;
   bool use_coarse_ = false;
+  CompactBlockMatrix system_copy_;
   BlockJacobi jacobi_;
   std::unique_ptr<CoarseLevel> coarse_;
   VecX t_;
