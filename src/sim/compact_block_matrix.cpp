@@ -41,9 +41,12 @@ std::uint8_t narrowestCovering(unsigned mask) {
   return kFull;
 }
 
-// acc[dof] += (the block's subset rows) . x_j[subset columns], in column order within each row.
-template <int S>
-inline void addSubsetProduct(const Real* a, const Real* xj, const int* dof, Real* acc) {
+// acc[dof] += (the block's subset rows) . x_j[subset columns], in column order within each row. The
+// subset's DOFs are 0, 1, 2 and then `Fourth` (3 for u, 4 for v) and 4: known at compile time, so
+// the loads and the accumulators need no index table.
+template <int S, int Fourth>
+inline void addSubsetProduct(const Real* a, const Real* xj, Real* acc) {
+  constexpr int dof[kB] = {0, 1, 2, Fourth, 4};
   Real xs[S];
   for (int c = 0; c < S; ++c) xs[c] = xj[dof[c]];
   for (int r = 0; r < S; ++r) {
@@ -132,12 +135,11 @@ void CompactBlockMatrix::multiply(const VecX& x, VecX& y) const {
       const std::size_t kk = static_cast<std::size_t>(k);
       const Real* a = values_.data() + start_[kk];
       const Real* xj = x.data() + static_cast<std::size_t>(col[kk]) * kB;
-      const DofSubset& sub = kSubsets[subset_[kk]];
-      switch (subset_[kk]) {
-        case 0: addSubsetProduct<3>(a, xj, sub.dof, acc); break;
-        case 1:
-        case 2: addSubsetProduct<4>(a, xj, sub.dof, acc); break;
-        default: addSubsetProduct<5>(a, xj, sub.dof, acc); break;
+      switch (subset_[kk]) {  // kSubsets' order
+        case 0: addSubsetProduct<3, 3>(a, xj, acc); break;
+        case 1: addSubsetProduct<4, 3>(a, xj, acc); break;
+        case 2: addSubsetProduct<4, 4>(a, xj, acc); break;
+        default: addSubsetProduct<5, 3>(a, xj, acc); break;
       }
     }
     for (int r = 0; r < kB; ++r) y[static_cast<Eigen::Index>(i) * kB + r] = acc[r];

@@ -85,6 +85,11 @@ Real crossingAngle(const CrossingVector& p) { return reducedAngle(p, false).phi;
 
 CrossingVector crossingAngleGradient(const CrossingVector& p) { return stencilAngle(p, false).g; }
 
+AngleWithGradient crossingAngleWithGradient(const CrossingVector& p) {
+  const StencilAngle a = stencilAngle(p, false);
+  return {a.phi, a.g};
+}
+
 CrossingMatrix crossingAngleHessian(const CrossingVector& p) { return stencilAngle(p, true).H; }
 
 Real shearStiffness(Real k_x, Real c_n, Real F_n) { return k_x * (1 + c_n * F_n); }
@@ -117,8 +122,8 @@ CrossingMatrix shearHessian(const CrossingVector& p, const ShearParameters& s) {
 }
 
 CrossingMatrix shearHessianClamped(const CrossingVector& p, const ShearParameters& s) {
-  const AnglePotential v = shearPotential(crossingAngle(p), s);
-  return composedHessian(p, v.first, v.second, true);
+  const StencilAngle a = stencilAngle(p, false);  // one evaluation of the angle for phi and dphi
+  return shearPotential(a.phi, s).second * a.g * a.g.transpose();
 }
 
 StickSlip stickSlipSpring(Real x, Real anchor, Real k, Real limit) {
@@ -169,15 +174,21 @@ CrossingVector shearFrictionSlipForce(const CrossingVector& p, Real anchor, Real
   return -sign(a.phi - anchor) * mu_phi * F_n * a.g;
 }
 
-ShearFriction shearFriction(const CrossingVector& p, Real anchor, Real k_fphi, Real mu_phi, Real F_n, bool clamped) {
-  const StencilAngle a = stencilAngle(p, !clamped);
+ShearFriction shearFrictionClamped(const AngleWithGradient& a, Real anchor, Real k_fphi, Real mu_phi, Real F_n) {
   const StickSlip s = stickSlipSpring(a.phi, anchor, k_fphi, mu_phi * F_n);
   ShearFriction f;
   f.stick = s.stick;
   f.force = s.force * a.g;
-  // d(F_phi dphi)/dp = F_phi' dphi dphi^T + F_phi d2phi, F_phi' = s.stiffness (-k_fphi or 0).
   f.jacobian = s.stiffness * a.g * a.g.transpose();
-  if (!clamped) f.jacobian += s.force * a.H;
+  return f;
+}
+
+ShearFriction shearFriction(const CrossingVector& p, Real anchor, Real k_fphi, Real mu_phi, Real F_n, bool clamped) {
+  if (clamped) return shearFrictionClamped(crossingAngleWithGradient(p), anchor, k_fphi, mu_phi, F_n);
+  const StencilAngle a = stencilAngle(p, true);
+  ShearFriction f = shearFrictionClamped({a.phi, a.g}, anchor, k_fphi, mu_phi, F_n);
+  // d(F_phi dphi)/dp = F_phi' dphi dphi^T + F_phi d2phi, F_phi' = -k_fphi (stick) or 0 (slip).
+  f.jacobian += stickSlipSpring(a.phi, anchor, k_fphi, mu_phi * F_n).force * a.H;
   return f;
 }
 

@@ -165,9 +165,16 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
         const Real F_n = pairCompression(p);
         const yarn::ShearParameters s = shearParameters(p, F_n);
         const yarn::CrossingVector x = crossingStencil(q, p.node);
+        if (clamped) {  // phi and dphi once for every term (the same values as the separate kernels')
+          const yarn::AngleWithGradient a = yarn::crossingAngleWithGradient(x);
+          if (with_f) t.gradient = yarn::shearPotential(a.phi, s).first * a.g;
+          if (with_dfdx) t.hessian = yarn::shearPotential(a.phi, s).second * a.g * a.g.transpose();
+          if (friction) t.friction = yarn::shearFrictionClamped(a, angle_anchor_[k], k_fphi_, mu_phi_, F_n);
+          return;
+        }
         if (with_f) t.gradient = yarn::shearGradient(x, s);
-        if (with_dfdx) t.hessian = clamped ? yarn::shearHessianClamped(x, s) : yarn::shearHessian(x, s);
-        if (friction) t.friction = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, clamped);
+        if (with_dfdx) t.hessian = yarn::shearHessian(x, s);
+        if (friction) t.friction = yarn::shearFriction(x, angle_anchor_[k], k_fphi_, mu_phi_, F_n, false);
       },
       [&](std::size_t k, const PairTerms& t, const RowShare& rows) {
         const ShearPair& p = shear_pairs_[k];

@@ -367,6 +367,30 @@ TEST(YarnShearFriction, StickSpringBelowAndConstantMomentAboveTheLimit) {
   EXPECT_LT((f.segment<3>(0) + f.segment<3>(3) + f.segment<3>(6)).norm(), 1e-12 * f.norm());
 }
 
+TEST(YarnShearFriction, OneAngleEvaluationGivesTheSeparateKernelsValues) {
+  // The model's clamped crossing pass evaluates the angle once per pair and derives shear and friction
+  // from it: the same bits as crossingAngle(), crossingAngleGradient() and shearFriction(clamped).
+  std::mt19937 rng(141);
+  const Real k_fphi = 1e-4, mu_phi = 0.3 * kL, F_n = 0.02;
+  for (Real phi : {0.4, 1.3, kPi / 2, 2.5}) {
+    const CrossingVector p = stencilAt(rng, phi);
+    const AngleWithGradient a = crossingAngleWithGradient(p);
+    EXPECT_EQ(a.phi, crossingAngle(p));
+    EXPECT_TRUE((a.g.array() == crossingAngleGradient(p).array()).all());
+    for (Real anchor : {phi - 0.03, phi + 0.5}) {  // stick, slip
+      const ShearFriction separate = shearFriction(p, anchor, k_fphi, mu_phi, F_n, true);
+      const ShearFriction shared = shearFrictionClamped(a, anchor, k_fphi, mu_phi, F_n);
+      EXPECT_EQ(shared.stick, separate.stick);
+      EXPECT_TRUE((shared.force.array() == separate.force.array()).all());
+      EXPECT_TRUE((shared.jacobian.array() == separate.jacobian.array()).all());
+    }
+    const ShearParameters s = shearParameters(true);
+    const AnglePotential v = shearPotential(a.phi, s);
+    EXPECT_TRUE(((v.second * a.g * a.g.transpose()).array() == shearHessianClamped(p, s).array()).all());
+    EXPECT_TRUE(((v.first * a.g).array() == shearGradient(p, s).array()).all());
+  }
+}
+
 TEST(YarnParallelContact, ZeroAboveTheDistanceAndPushingApartBelow) {
   const Real R = 0.25e-3, k_c = 1.963 / kL;  // k_c ~ k_s / L
   EXPECT_NEAR(parallelContactDistance(R, true), 1e-3, 1e-18);

@@ -38,6 +38,12 @@ Real crossingAngle(const CrossingVector& p);
 /// (|dphi/da| = 1 / |a| for every phi, but its direction jumps). Shear keeps phi near pi / 2 and
 /// jamming keeps interlaced pairs above phi_j.
 CrossingVector crossingAngleGradient(const CrossingVector& p);
+/// crossingAngle() and crossingAngleGradient() from one evaluation of the angle (the same values).
+struct AngleWithGradient {
+  Real phi = 0;
+  CrossingVector g = CrossingVector::Zero();
+};
+AngleWithGradient crossingAngleWithGradient(const CrossingVector& p);
 /// d2phi/dp2 (9 x 9, symmetric), exact: phi = G(S, c) = atan2(sqrt(S), c) with S and c polynomials of
 /// (a, b), so d2phi = G_S d2S + G_c d2c + G_SS dS dS^T + G_Sc (dS dc^T + dc dS^T) + G_cc dc dc^T, with
 /// s = sqrt(S), r^2 = S + c^2 = |a|^2 |b|^2:
@@ -147,6 +153,8 @@ struct ShearFriction {
   bool stick = true;
 };
 ShearFriction shearFriction(const CrossingVector& p, Real anchor, Real k_fphi, Real mu_phi, Real F_n, bool clamped);
+/// shearFriction(p, ..., clamped = true) from the angle and gradient of p already evaluated.
+ShearFriction shearFrictionClamped(const AngleWithGradient& a, Real anchor, Real k_fphi, Real mu_phi, Real F_n);
 /// The anchor update of stickSlipAnchor() for the angle phi with the limit mu_phi F_n.
 Real shearFrictionAnchor(Real phi, Real anchor, Real k_fphi, Real mu_phi, Real F_n);
 
