@@ -4,7 +4,8 @@
 //   yarn_step_bench [--out DIR] [--sides N1,N2,...] [--steps K] [--dt S] [--integrator NAME]
 //                   [--repeats R] [--stable-side N] [--stable-time S] [--stable-dts D1,D2,...]
 //                   [--linear-tolerance T] [--accept-tolerance T] [--newton-tolerance T]
-//                   [--preconditioner two_level|block_jacobi] [--smoothing-steps S] [--warm-start 0|1]
+//                   [--preconditioner two_level|block_jacobi] [--smoothing-steps S] [--smoothing-weight W]
+//                   [--warm-start 0|1]
 //                   [--self-collision 0|1] [--reference-tolerance T] [--model-option KEY=VALUE ...]
 //
 // Cost: a square sheet of N x N crossings of the default fabric (1 yarn/mm, every yarn simulated), hung
@@ -66,6 +67,7 @@ Real g_newton_tolerance = 0;  // --newton-tolerance (0: the solver's default)
 std::string g_preconditioner;  // --preconditioner (empty: the solver's default)
 bool g_warm_start = false;     // --warm-start 1
 int g_smoothing_steps = -1;    // --smoothing-steps (-1: the solver's default)
+Real g_smoothing_weight = 0;   // --smoothing-weight (0: the solver's default)
 bool g_self_collision = false; // --self-collision 1: the scene's v3 pass after every step
 std::map<std::string, std::string> g_model_options;  // --model-option key=value (repeatable)
 
@@ -91,6 +93,7 @@ DrapeSceneSpec sheetSpec(int side_crossings, IntegratorType integrator, Real dt,
   if (!g_preconditioner.empty()) s.settings.solver.preconditioner = preconditionerFromString(g_preconditioner);
   s.settings.solver.warm_start = g_warm_start;
   if (g_smoothing_steps >= 0) s.settings.solver.smoothing_steps = g_smoothing_steps;
+  if (g_smoothing_weight > 0) s.settings.solver.smoothing_weight = g_smoothing_weight;
   s.self_collision = g_self_collision;
   if (g_self_collision) s.collision.version = SelfCollisionVersion::kRollback;
   return s;
@@ -205,6 +208,7 @@ int main(int argc, char** argv) {
     else if (a == "--preconditioner") g_preconditioner = v;
     else if (a == "--warm-start") g_warm_start = std::atoi(v.c_str()) != 0;
     else if (a == "--smoothing-steps") g_smoothing_steps = std::atoi(v.c_str());
+    else if (a == "--smoothing-weight") g_smoothing_weight = std::atof(v.c_str());
     else if (a == "--self-collision") g_self_collision = std::atoi(v.c_str()) != 0;
     else if (a == "--reference-tolerance") reference_tolerance = std::atof(v.c_str());
     else if (a == "--model-option") {
