@@ -10,6 +10,7 @@
 #include "textile_handling/sim/yarn_normal_force.h"
 #include "textile_handling/sim/yarn_woven_model.h"
 #include "ordered_parallel.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -203,7 +204,11 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
     }
   }
   if (!friction || compression_.empty()) return;
-  for (const SlidingDof& sd : sliding_dofs_) {
+  // Each sliding DOF writes only its own entries: on all threads with the same results.
+  const auto sliding = static_cast<std::ptrdiff_t>(sliding_dofs_.size());
+#pragma omp parallel for schedule(static) if (sliding >= kParallelMinStencils)
+  for (std::ptrdiff_t k = 0; k < sliding; ++k) {
+    const SlidingDof& sd = sliding_dofs_[static_cast<std::size_t>(k)];
     const Eigen::Index d = sd.dof;
     const yarn::StickSlip s = yarn::slidingFriction(q[d] - arc_offset_[d], slide_anchor_[d], k_f_, fabric_.sliding_friction,
                                                     compression_[sd.crossing]);
@@ -216,14 +221,21 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
 void YarnWovenModel::acceptStep(const VecX& x, VecX& v) {
   const VecX q = kernelCoordinates(x);
   if (options_.crossing.friction && !compression_.empty()) {
-    for (const SlidingDof& s : sliding_dofs_)
+    // Each anchor is its own DOF's or pair's: the loops run on all threads with the same results.
+    const auto dofs = static_cast<std::ptrdiff_t>(sliding_dofs_.size()), pairs = static_cast<std::ptrdiff_t>(shear_pairs_.size());
+#pragma omp parallel for schedule(static) if (dofs >= kParallelMinStencils)
+    for (std::ptrdiff_t k = 0; k < dofs; ++k) {
+      const SlidingDof& s = sliding_dofs_[static_cast<std::size_t>(k)];
       slide_anchor_[s.dof] =
           yarn::slidingFrictionAnchor(x[s.dof], slide_anchor_[s.dof], k_f_, fabric_.sliding_friction, compression_[s.crossing]);
-    for (std::size_t k = 0; k < shear_pairs_.size(); ++k) {
-      const ShearPair& p = shear_pairs_[k];
+    }
+#pragma omp parallel for schedule(static) if (pairs >= kParallelMinStencils)
+    for (std::ptrdiff_t k = 0; k < pairs; ++k) {
+      const ShearPair& p = shear_pairs_[static_cast<std::size_t>(k)];
       const Real phi = yarn::crossingAngle(crossingStencil(q, p.node));
       if (!p.torn && std::isfinite(phi))
-        angle_anchor_[k] = yarn::shearFrictionAnchor(phi, angle_anchor_[k], k_fphi_, mu_phi_, pairCompression(p));
+        angle_anchor_[static_cast<std::size_t>(k)] =
+            yarn::shearFrictionAnchor(phi, angle_anchor_[static_cast<std::size_t>(k)], k_fphi_, mu_phi_, pairCompression(p));
     }
   }
   tearOverloadedSegments(q, v);

@@ -13,6 +13,7 @@
 #include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/yarn_kernels.h"
 #include "ordered_parallel.h"
+#include "parallel_size.h"
 #include "yarn_stencils.h"
 
 namespace textile_handling {
@@ -413,7 +414,11 @@ Real YarnWovenModel::gravitationalEnergy(const VecX& x) const {
 Real YarnWovenModel::maxEdgeStretch(const VecX& x) const {
   const VecX q = kernelCoordinates(x);
   Real worst = 0;
-  for (const Stencil& s : segments_) {
+  const auto count = static_cast<std::ptrdiff_t>(segments_.size());
+  // A maximum does not depend on the order: the same value on any thread count.
+#pragma omp parallel for schedule(static) reduction(max : worst) if (count >= kParallelMinStencils)
+  for (std::ptrdiff_t k = 0; k < count; ++k) {
+    const Stencil& s = segments_[static_cast<std::size_t>(k)];
     if (s.torn) continue;
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
     const Real ratio = (e.segment<3>(4) - e.segment<3>(0)).norm() / (e[7] - e[3]);
@@ -447,17 +452,31 @@ void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix&
 void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const {
   const VecX q = kernelCoordinates(x);
   mv = VecX::Zero(v.size());
-  for (const Stencil& s : segments_) {
-    if (s.torn) continue;
-    const auto dofs = dofsOf<2>(s);
-    yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
-    for (int k = 0; k < 8; ++k)
-      if (held_[s.dof[static_cast<std::size_t>(k)]]) local[k] = 0;
-    yarn::SegmentVector out = yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m) * local;
-    for (int k = 0; k < 8; ++k)
-      if (held_[s.dof[static_cast<std::size_t>(k)]]) out[k] = 0;
-    yarn_stencil::scatterAdd<2>(out, dofs, &mv);
-  }
+  // Segment by segment on all threads, every entry summed in segment order (as in addStencilVectors,
+  // but a non-finite product is added, not skipped: a NaN velocity must reach the force).
+  computeInParallelApplyByRowRanges<yarn::SegmentVector>(
+      schedule(segments_), segments_.size(), static_cast<Index>(sheet_.nodeCount()),
+      [&](std::size_t k, auto&& visit) {
+        for (int i = 0; i < 2; ++i) visit(segments_[k].node[static_cast<std::size_t>(i)]);
+      },
+      [&](std::size_t k, yarn::SegmentVector& out) {
+        const Stencil& s = segments_[k];
+        if (s.torn) return;
+        const auto dofs = dofsOf<2>(s);
+        yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
+        for (int c = 0; c < 8; ++c)
+          if (held_[s.dof[static_cast<std::size_t>(c)]]) local[c] = 0;
+        out = yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m) * local;
+        for (int c = 0; c < 8; ++c)
+          if (held_[s.dof[static_cast<std::size_t>(c)]]) out[c] = 0;
+      },
+      [&](std::size_t k, const yarn::SegmentVector& out, const RowShare& rows) {
+        const Stencil& s = segments_[k];
+        if (s.torn) return;
+        for (int i = 0; i < 2; ++i)
+          if (rows.owns(s.node[static_cast<std::size_t>(i)]))
+            for (int c = 0; c < 4; ++c) mv[static_cast<Eigen::Index>(s.dof[static_cast<std::size_t>(4 * i + c)])] += out[4 * i + c];
+      });
   addTornSegmentMassProduct(q, v, mv);
   for (std::size_t d : sheet_.held_dofs)
     mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];
