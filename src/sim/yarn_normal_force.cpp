@@ -5,8 +5,11 @@
 #include <algorithm>
 #include <cstddef>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "textile_handling/sim/yarn_kernels.h"
+#include "parallel_size.h"
 
 namespace textile_handling {
 
@@ -59,10 +62,12 @@ Vec3 chord(const YarnGrid& grid, const VecX& q, const YarnSlot& slot) {
 // +1 where the warp is on top at the crossing, -1 where the weft is.
 Real warpSide(const YarnGrid& grid, std::size_t crossing) { return grid.crossings[crossing].warp_on_top ? 1 : -1; }
 
-// Adds, for every crossing on `piece`, n . F of the piece's stretch force (uncrimped) and the bending
-// force of the crimped stencil centred at it into (*push)[crossing]; the caller flips the sign for a weft.
-void addPieceNormalForces(const YarnSheet& sheet, const VecX& q, const YarnPiece& piece, const std::vector<Vec3>& N,
-                          const std::vector<Vec3>& n, Real R, Real k_s, Real k_b, std::vector<Real>* push) {
+// For every crossing on `piece`, n . F of the piece's stretch force (uncrimped) and the bending force of
+// the crimped stencil centred at it, as (crossing, value) in the piece's order; the caller adds them and
+// flips the sign for a weft.
+std::vector<std::pair<std::size_t, Real>> pieceNormalForces(const YarnSheet& sheet, const VecX& q, const YarnPiece& piece,
+                                                            const std::vector<Vec3>& N, const std::vector<Vec3>& n, Real R,
+                                                            Real k_s, Real k_b) {
   const YarnGrid& grid = sheet.grid;
   const std::size_t count = piece.nodes.size();
   // Crimped points: a crossing's warp point at x + s R N, its weft point at x - s R N (s = warpSide).
@@ -86,10 +91,13 @@ void addPieceNormalForces(const YarnSheet& sheet, const VecX& q, const YarnPiece
         yarn::packBendStencil(crimped[k - 1], arc[k - 1], crimped[k], arc[k], crimped[k + 1], arc[k + 1]), k_b);
     force[k] -= g.segment<3>(4);  // only the stencil centred at the crossing (notes 9.4)
   }
+  std::vector<std::pair<std::size_t, Real>> out;
+  out.reserve(count);
   for (std::size_t k = 0; k < count; ++k) {
     const std::size_t node = piece.nodes[k];
-    if (!grid.isEnd(node)) (*push)[node] += n[node].dot(force[k]);
+    if (!grid.isEnd(node)) out.emplace_back(node, n[node].dot(force[k]));
   }
+  return out;
 }
 
 }  // namespace
@@ -98,7 +106,10 @@ std::vector<Vec3> crossingPanelNormals(const YarnSheet& sheet, const VecX& q) {
   const YarnGrid& grid = sheet.grid;
   const CrossingSlots slots = crossingSlots(grid);
   std::vector<Vec3> N(grid.crossings.size(), Vec3::Zero());
-  for (std::size_t c = 0; c < grid.crossings.size(); ++c) {
+  const auto crossings = static_cast<std::ptrdiff_t>(grid.crossings.size());
+#pragma omp parallel for schedule(static) if (crossings >= kParallelMinStencils)
+  for (std::ptrdiff_t k = 0; k < crossings; ++k) {
+    const std::size_t c = static_cast<std::size_t>(k);
     const Vec3 tw = chord(grid, q, slots.warp[c]), tv = chord(grid, q, slots.weft[c]);
     const Vec3 cross = tw.cross(tv);
     const Real length = cross.norm();
@@ -122,9 +133,18 @@ CrossingCompression crossingCompression(const YarnSheet& sheet, const WovenFabri
   out.warp_push.assign(crossings, 0);
   out.weft_push.assign(crossings, 0);
   const Real R = fabric.yarn_radius_m, k_s = fabric.stretchStiffness(), k_b = fabric.bendingStiffness();
-  for (const YarnPiece& piece : sheet.grid.pieces)
-    if (!piece.seam)  // a seam passes through no crossing
-      addPieceNormalForces(sheet, q, piece, N, out.normal, R, k_s, k_b, piece.warp ? &out.warp_push : &out.weft_push);
+  // The pieces on all threads, their values added in piece order: the same sums on any thread count.
+  const std::vector<YarnPiece>& pieces = sheet.grid.pieces;
+  std::vector<std::vector<std::pair<std::size_t, Real>>> values(pieces.size());
+  const auto count = static_cast<std::ptrdiff_t>(pieces.size());
+#pragma omp parallel for schedule(dynamic, 4) if (static_cast<std::ptrdiff_t>(crossings) >= kParallelMinStencils)
+  for (std::ptrdiff_t p = 0; p < count; ++p)
+    if (!pieces[static_cast<std::size_t>(p)].seam)  // a seam passes through no crossing
+      values[static_cast<std::size_t>(p)] = pieceNormalForces(sheet, q, pieces[static_cast<std::size_t>(p)], N, out.normal, R, k_s, k_b);
+  for (std::size_t p = 0; p < pieces.size(); ++p) {
+    std::vector<Real>& push = pieces[p].warp ? out.warp_push : out.weft_push;
+    for (const auto& [node, value] : values[p]) push[node] += value;
+  }
   out.force.resize(crossings);
   for (std::size_t c = 0; c < crossings; ++c) {
     out.weft_push[c] = -out.weft_push[c];  // -n . F(v)
