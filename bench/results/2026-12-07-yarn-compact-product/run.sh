@@ -5,7 +5,7 @@
 #   OLD=<yarn_step_bench of a2ce2fd> NEW=<yarn_step_bench of b9ee7da> bash run.sh [ROUNDS] [FIRST] [WHICH]
 # ROUNDS rounds numbered from FIRST (default 1); WHICH = both (default) or semi_implicit.
 set -eu
-here=$(cd "$(dirname "$0")" && pwd)
+here=${OUT_DIR:-$(cd "$(dirname "$0")" && pwd)}  # OUT_DIR: another results directory reusing this script
 rounds=${1:-3}
 first=${2:-1}
 which=${3:-both}
@@ -22,4 +22,4 @@ for r in $(seq "$first" $((first + rounds - 1))); do
     "$bin" --out "$here/newton/$arm-$r" --integrator backward_euler_newton "${common[@]}" > "$here/newton/$arm-$r.txt"
   done
 done
-python3 "$here/../2026-12-06-yarn-block-coarse-solve/summarise.py" "$here" | tee "$here/summary.txt"
+python3 "$(dirname "$0")/../2026-12-06-yarn-block-coarse-solve/summarise.py" "$here" | tee "$here/summary.txt"
