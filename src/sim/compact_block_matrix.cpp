@@ -59,7 +59,8 @@ inline void addSubsetProduct(const Real* a, const Real* xj, Real* acc) {
 }  // namespace
 
 void CompactBlockMatrix::chooseSubsets(const BlockSparseMatrix& a) {
-  const bool fresh = pattern_ != &a.pattern() || num_blocks_ != a.pattern().numBlocks();
+  const bool fresh = pattern_ != &a.pattern() || num_blocks_ != a.pattern().numBlocks() ||
+                     subset_.size() != static_cast<std::size_t>(a.pattern().numBlocks());
   pattern_ = &a.pattern();
   num_blocks_ = pattern_->numBlocks();
   if (fresh) subset_.assign(static_cast<std::size_t>(num_blocks_), 0);
