@@ -58,15 +58,17 @@ inline void addSubsetProduct(const Real* a, const Real* xj, Real* acc) {
 
 }  // namespace
 
+bool CompactBlockMatrix::compacts(const BlockSparseMatrix& a) const {
+  return pattern_ == &a.pattern() && !subset_.empty() && subset_.size() == static_cast<std::size_t>(a.pattern().numBlocks());
+}
+
 void CompactBlockMatrix::chooseSubsets(const BlockSparseMatrix& a) {
-  const bool fresh = pattern_ != &a.pattern() || num_blocks_ != a.pattern().numBlocks() ||
-                     subset_.size() != static_cast<std::size_t>(a.pattern().numBlocks());
+  const Index num_blocks = a.pattern().numBlocks();
+  if (!compacts(a)) subset_.assign(static_cast<std::size_t>(num_blocks), 0);
   pattern_ = &a.pattern();
-  num_blocks_ = pattern_->numBlocks();
-  if (fresh) subset_.assign(static_cast<std::size_t>(num_blocks_), 0);
-  start_.assign(static_cast<std::size_t>(num_blocks_) + 1, 0);
+  start_.assign(static_cast<std::size_t>(num_blocks) + 1, 0);
   std::size_t total = 0;
-  for (Index k = 0; k < num_blocks_; ++k) {
+  for (Index k = 0; k < num_blocks; ++k) {
     const std::size_t kk = static_cast<std::size_t>(k);
     // Subsets only widen, so a term that switches on and off does not repack every time.
     subset_[kk] = narrowestCovering(nonzeroMask(a.block(k)) | kSubsets[subset_[kk]].mask);
@@ -111,7 +113,7 @@ void CompactBlockMatrix::assign(const BlockSparseMatrix& a) {
     pattern_ = nullptr;
     return;
   }
-  if (pattern_ != &a.pattern() || num_blocks_ != a.pattern().numBlocks() || subset_.empty()) chooseSubsets(a);
+  if (!compacts(a)) chooseSubsets(a);
   if (subset_.empty()) return;  // too large to compact
   if (!pack(a)) {
     chooseSubsets(a);

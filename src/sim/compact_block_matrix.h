@@ -37,12 +37,13 @@ class CompactBlockMatrix {
   // One of the DOF subsets, by index into kSubsets (compact_block_matrix.cpp).
   using Subset = std::uint8_t;
 
+  // True if subset_ holds one subset per block of a's pattern (kept from the last assign).
+  bool compacts(const BlockSparseMatrix& a) const;
   void chooseSubsets(const BlockSparseMatrix& a);
   bool pack(const BlockSparseMatrix& a);  // false if a nonzero lies outside its block's subset
 
   const BlockSparseMatrix* full_ = nullptr;
   const BlockPattern* pattern_ = nullptr;
-  Index num_blocks_ = -1;
   std::vector<Subset> subset_;       // per block slot
   std::vector<std::uint32_t> start_;  // per block slot: offset of its values in values_; one more at the end
   std::vector<Real> values_;          // each block's subset rows x subset columns, row-major

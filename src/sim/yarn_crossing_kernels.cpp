@@ -112,7 +112,10 @@ AnglePotential shearPotential(Real phi, const ShearParameters& s) {
 Real shearEnergy(const CrossingVector& p, const ShearParameters& s) { return shearPotential(crossingAngle(p), s).value; }
 
 CrossingVector shearGradient(const CrossingVector& p, const ShearParameters& s) {
-  const StencilAngle a = stencilAngle(p, false);
+  return shearGradient(crossingAngleWithGradient(p), s);
+}
+
+CrossingVector shearGradient(const AngleWithGradient& a, const ShearParameters& s) {
   return shearPotential(a.phi, s).first * a.g;
 }
 
@@ -122,7 +125,10 @@ CrossingMatrix shearHessian(const CrossingVector& p, const ShearParameters& s) {
 }
 
 CrossingMatrix shearHessianClamped(const CrossingVector& p, const ShearParameters& s) {
-  const StencilAngle a = stencilAngle(p, false);  // one evaluation of the angle for phi and dphi
+  return shearHessianClamped(crossingAngleWithGradient(p), s);  // one evaluation of the angle for phi and dphi
+}
+
+CrossingMatrix shearHessianClamped(const AngleWithGradient& a, const ShearParameters& s) {
   return shearPotential(a.phi, s).second * a.g * a.g.transpose();
 }
 

@@ -168,9 +168,8 @@ void YarnWovenModel::addCrossingForces(const VecX& q, const VecX& v, VecX* f, Bl
         const yarn::CrossingVector x = crossingStencil(q, p.node);
         if (clamped) {  // phi and dphi once for every term (the same values as the separate kernels')
           const yarn::AngleWithGradient a = yarn::crossingAngleWithGradient(x);
-          const yarn::AnglePotential potential = yarn::shearPotential(a.phi, s);
-          if (with_f) t.gradient = potential.first * a.g;
-          if (with_dfdx) t.hessian = potential.second * a.g * a.g.transpose();
+          if (with_f) t.gradient = yarn::shearGradient(a, s);
+          if (with_dfdx) t.hessian = yarn::shearHessianClamped(a, s);
           if (friction) t.friction = yarn::shearFrictionClamped(a, angle_anchor_[k], k_fphi_, mu_phi_, F_n);
           return;
         }

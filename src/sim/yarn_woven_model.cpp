@@ -242,7 +242,7 @@ void YarnWovenModel::addStencilMatrices(const std::vector<Stencil>& list, Real s
 }
 
 template <int Nodes, class Kernel>
-void YarnWovenModel::addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>& degenerate,
+void YarnWovenModel::addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>* degenerate,
                                        Kernel&& kernel) const {
   using Vector = Eigen::Matrix<Real, 4 * Nodes, 1>;
   computeInParallelApplyByRowRanges<Vector>(
@@ -253,8 +253,8 @@ void YarnWovenModel::addStencilVectors(const std::vector<Stencil>& list, VecX& o
       [&](std::size_t k, Vector& g) { g = kernel(list[k]); },
       [&](std::size_t k, const Vector& g, const RowShare& rows) {
         const Stencil& s = list[k];
-        if (!g.allFinite()) {
-          if (rows.owns(s.node[0])) ++degenerate;  // counted once, by the first node's thread
+        if (degenerate && !g.allFinite()) {
+          if (rows.owns(s.node[0])) ++*degenerate;  // counted once, by the first node's thread
           return;
         }
         for (int i = 0; i < Nodes; ++i)
@@ -313,7 +313,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
   const Real k_s = fabric_.stretchStiffness(), k_b = fabric_.bendingStiffness(), rho = fabric_.linear_density_kg_per_m;
   // A gradient with a NaN marks a degenerate term: material slid out of the segment, or zero length.
   std::atomic<Index> degenerate{0};
-  addStencilVectors<2>(segments_, grad, degenerate, [&](const Stencil& s) {
+  addStencilVectors<2>(segments_, grad, &degenerate, [&](const Stencil& s) {
     const yarn::SegmentVector e = yarn_stencil::gather<2>(q, dofsOf<2>(s));
     // A torn segment keeps only its gravity: the weight of its two halves (yarn_woven_tearing.cpp).
     yarn::SegmentVector g = s.torn ? yarn::SegmentVector(yarn::SegmentVector::Zero()) : yarn::stretchGradient(e, k_s);
@@ -321,7 +321,7 @@ ForceReport YarnWovenModel::computeForces(const VecX& x, const VecX& v, VecX& f,
     if (!(e[7] - e[3] > 0)) g[0] = std::numeric_limits<Real>::quiet_NaN();
     return g;
   });
-  addStencilVectors<3>(bends_, grad, degenerate, [&](const Stencil& s) {
+  addStencilVectors<3>(bends_, grad, &degenerate, [&](const Stencil& s) {
     if (s.torn) return yarn::BendVector(yarn::BendVector::Zero());
     const yarn::BendVector e = yarn_stencil::gather<3>(q, dofsOf<3>(s));
     yarn::BendVector g = yarn::bendGradient(e, k_b);
@@ -452,31 +452,19 @@ void YarnWovenModel::addMassMatrix(const VecX& x, Real scale, BlockSparseMatrix&
 void YarnWovenModel::multiplyMass(const VecX& x, const VecX& v, VecX& mv) const {
   const VecX q = kernelCoordinates(x);
   mv = VecX::Zero(v.size());
-  // Segment by segment on all threads, every entry summed in segment order (as in addStencilVectors,
-  // but a non-finite product is added, not skipped: a NaN velocity must reach the force).
-  computeInParallelApplyByRowRanges<yarn::SegmentVector>(
-      schedule(segments_), segments_.size(), static_cast<Index>(sheet_.nodeCount()),
-      [&](std::size_t k, auto&& visit) {
-        for (int i = 0; i < 2; ++i) visit(segments_[k].node[static_cast<std::size_t>(i)]);
-      },
-      [&](std::size_t k, yarn::SegmentVector& out) {
-        const Stencil& s = segments_[k];
-        if (s.torn) return;
-        const auto dofs = dofsOf<2>(s);
-        yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
-        for (int c = 0; c < 8; ++c)
-          if (held_[s.dof[static_cast<std::size_t>(c)]]) local[c] = 0;
-        out = yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m) * local;
-        for (int c = 0; c < 8; ++c)
-          if (held_[s.dof[static_cast<std::size_t>(c)]]) out[c] = 0;
-      },
-      [&](std::size_t k, const yarn::SegmentVector& out, const RowShare& rows) {
-        const Stencil& s = segments_[k];
-        if (s.torn) return;
-        for (int i = 0; i < 2; ++i)
-          if (rows.owns(s.node[static_cast<std::size_t>(i)]))
-            for (int c = 0; c < 4; ++c) mv[static_cast<Eigen::Index>(s.dof[static_cast<std::size_t>(4 * i + c)])] += out[4 * i + c];
-      });
+  // No degenerate count: a non-finite product is added, not skipped, so a NaN velocity reaches the force.
+  addStencilVectors<2>(segments_, mv, nullptr, [&](const Stencil& s) {
+    yarn::SegmentVector out = yarn::SegmentVector::Zero();
+    if (s.torn) return out;
+    const auto dofs = dofsOf<2>(s);
+    yarn::SegmentVector local = yarn_stencil::gather<2>(v, dofs);
+    for (int c = 0; c < 8; ++c)
+      if (held_[s.dof[static_cast<std::size_t>(c)]]) local[c] = 0;
+    out = yarn::segmentMass(yarn_stencil::gather<2>(q, dofs), fabric_.linear_density_kg_per_m) * local;
+    for (int c = 0; c < 8; ++c)
+      if (held_[s.dof[static_cast<std::size_t>(c)]]) out[c] = 0;
+    return out;
+  });
   addTornSegmentMassProduct(q, v, mv);
   for (std::size_t d : sheet_.held_dofs)
     mv[static_cast<Eigen::Index>(d)] += lumped_[static_cast<Eigen::Index>(d)] * v[static_cast<Eigen::Index>(d)];

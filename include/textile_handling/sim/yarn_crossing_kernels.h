@@ -94,6 +94,10 @@ CrossingMatrix shearHessian(const CrossingVector& p, const ShearParameters& s);
 /// The Gauss-Newton part V''(phi) dphi dphi^T (notes 9.2: no d2phi): positive semi-definite, rank one,
 /// because V'' = k L (1 + c_j s^3) > 0 for k > 0 and c_j >= 0.
 CrossingMatrix shearHessianClamped(const CrossingVector& p, const ShearParameters& s);
+/// shearGradient() and shearHessianClamped() from the angle and gradient of p already evaluated (the same
+/// values).
+CrossingVector shearGradient(const AngleWithGradient& a, const ShearParameters& s);
+CrossingMatrix shearHessianClamped(const AngleWithGradient& a, const ShearParameters& s);
 
 // ---- Stick/slip spring (notes 3.4, 3.6) ---------------------------------------------------------
 

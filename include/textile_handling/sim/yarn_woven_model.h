@@ -251,9 +251,9 @@ class YarnWovenModel : public ClothModel {
   void scatterBlocks(const Matrix& m, const Stencil& s, Real scale, BlockSparseMatrix& a, const RowShare& rows) const;
   /// Adds kernel(s) (4 Nodes entries, a torn stencil's included) of every stencil s of `list` into
   /// `out` on all threads in stencil order (ordered_parallel.h); a vector with a NaN or infinity is
-  /// left out and counted in `degenerate`.
+  /// left out and counted in `degenerate`, or added as it is when `degenerate` is null.
   template <int Nodes, class Kernel>
-  void addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>& degenerate, Kernel&& kernel) const;
+  void addStencilVectors(const std::vector<Stencil>& list, VecX& out, std::atomic<Index>* degenerate, Kernel&& kernel) const;
   /// Adds scale kernel(s) (a 4 Nodes x 4 Nodes matrix) of every untorn stencil s of `list` into a, on
   /// all threads in stencil order; with skip_non_finite, a matrix with a NaN or infinity (a degenerate
   /// term) is left out instead of added.
