@@ -16,7 +16,8 @@ namespace {
 const std::vector<std::pair<std::string, AccuracyScene>>& sceneNames() {
   static const std::vector<std::pair<std::string, AccuracyScene>> names = {
       {"towel_corner", AccuracyScene::kTowelCorner}, {"towel_edge", AccuracyScene::kTowelEdge},
-      {"square_corner", AccuracyScene::kSquareCorner}, {"table_drape", AccuracyScene::kTableDrape},
+      {"square_corner", AccuracyScene::kSquareCorner}, {"small_square_corner", AccuracyScene::kSmallSquareCorner},
+      {"table_drape", AccuracyScene::kTableDrape},
       {"pushed_edges", AccuracyScene::kPushedEdges}};
   return names;
 }
@@ -85,6 +86,10 @@ DrapeSceneSpec drapeSpec(AccuracyScene scene, const AccuracyConfig& c) {
     case AccuracyScene::kSquareCorner:
       s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);
       s.textile = squareCloth("square", 0.30);
+      break;
+    case AccuracyScene::kSmallSquareCorner:
+      s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);
+      s.textile = squareCloth("small_square", 0.10);
       break;
     case AccuracyScene::kTableDrape:
       s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);
@@ -220,10 +225,11 @@ db::DrapeDifferenceOptions AccuracyRun::differenceOptions() const {
   o.named_points = named_points;
   o.align_yaw = held_at_one_point;
   // Hanging towels: the database's own frame (what recognition compares). Smaller scenes: a 0.8 m
-  // window at 5 mm per pixel, so that a few centimetres show.
+  // window at 5 mm per pixel, so that a few centimetres show; the 10 cm square a 0.25 m window.
   if (grid.spacing() > 0 && nodes > 0) {
     const Vec2 extent = grid.node(grid.rows() - 1, grid.cols() - 1) - grid.origin();
-    if (extent.maxCoeff() < 0.6) o.frame = vision::CanonicalFrame::fromMetric(0.8, 0.8, 160);
+    if (extent.maxCoeff() < 0.2) o.frame = vision::CanonicalFrame::fromMetric(0.25, 0.25, 160);
+    else if (extent.maxCoeff() < 0.6) o.frame = vision::CanonicalFrame::fromMetric(0.8, 0.8, 160);
   }
   return o;
 }

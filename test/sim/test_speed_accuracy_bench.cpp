@@ -65,3 +65,26 @@ TEST(SpeedAccuracyScene, TheCompressionSceneRunsAFiveDofModel) {
   for (Index i = 0; i < r.nodes; ++i) max_x = std::max(max_x, r.positions[3 * i]);
   EXPECT_NEAR(max_x, 0.18, 0.01);
 }
+
+TEST(SpeedAccuracyScene, TheSmallSquareHangsTenCentimetresFromACorner) {
+  EXPECT_EQ(accuracySceneFromString("small_square_corner"), AccuracyScene::kSmallSquareCorner);
+  EXPECT_EQ(toString(AccuracyScene::kSmallSquareCorner), "small_square_corner");
+  AccuracyConfig c;
+  c.model.spec = ClothModelSpec("particle_kes");
+  c.spacing = 0.02;
+  const AccuracyRun r = runAccuracyScene(AccuracyScene::kSmallSquareCorner, c, AccuracyRunLimits{});
+  ASSERT_EQ(r.status, "rest") << r.note;
+  EXPECT_EQ(r.nodes, 36);  // 6 x 6 nodes on the 10 cm square at 2 cm
+  EXPECT_TRUE(r.held_at_one_point);
+  // It hangs from its corner: every node at or below the hold, the lowest about a diagonal (14 cm) down.
+  Real top = -1e9, bottom = 1e9;
+  for (Index i = 0; i < r.nodes; ++i) {
+    top = std::max(top, r.positions[3 * i + 2]);
+    bottom = std::min(bottom, r.positions[3 * i + 2]);
+  }
+  EXPECT_GT(top - bottom, 0.10);
+  EXPECT_LT(top - bottom, 0.16);
+  // Its silhouettes are compared in a window the square fills (0.25 m wide), not the towels' 0.8 m.
+  const vision::CanonicalFrame frame = r.differenceOptions().frame;
+  EXPECT_NEAR(frame.width_px * frame.metres_per_pixel, 0.25, 1e-9);
+}
