@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Reproduces this directory: the yarn model's plain weave measured and fitted at d = 1 mm, its drape
+# coefficient at 2 mm, the fitted cheap models' drape coefficients at 4 and 2 mm, KES bending on the 45 degree
+# bias at 1, 2 and 4 mm for the three models, and the 10 cm square hung by a corner against the yarn model at
+# 1 mm (speed_accuracy_bench). Run from the repository root after setup.sh; about 1 h on one core.
+set -u
+LAB=.build/ws/devel/lib/textile_handling/material_lab
+BENCH=.build/ws/devel/lib/textile_handling/speed_accuracy_bench
+OUT=bench/results/2026-12-07-fitted-drapes-converged
+export OMP_WAIT_POLICY=passive
+mkdir -p $OUT/bias45
+# Lab figures and fits at 1 mm.
+$LAB --model yarn_woven --model-option weave=plain --spacing 0.001 --tests bending,shear,tensile --fit particle_kes,choi_ko \
+  --threads 1 --out $OUT/yarn_woven_plain_1mm > $OUT/yarn_woven_plain_1mm.log 2>&1; echo "yarn fit 1 mm exit $?" >> $OUT/exit_codes.txt
+# Drape coefficients (the yarn model at 1 cm and 4 mm: ../2026-12-06-material-lab).
+$LAB --model yarn_woven --model-option weave=plain --tests drape --drape-spacing 0.002 --threads 1 \
+  --out $OUT/drape_yarn_woven_plain_0.002 > $OUT/drape_yarn_woven_plain_0.002.log 2>&1; echo "yarn drape 2 mm exit $?" >> $OUT/exit_codes.txt
+for d in 0.004 0.002; do
+  for m in choi_ko particle_kes; do
+    $LAB --model $m --material $OUT/yarn_woven_plain_1mm/fitted_$m.yaml --tests drape --drape-spacing $d --threads 1 \
+      --out $OUT/drape_fitted_${m}_$d > $OUT/drape_fitted_${m}_$d.log 2>&1; echo "fitted $m drape $d exit $?" >> $OUT/exit_codes.txt
+  done
+done
+# Bending along the 45 degree bias (warp specimens) at three spacings.
+for d in 0.001 0.002 0.004; do
+  $LAB --model yarn_woven --model-option weave=plain --tests bending --directions warp --bending-bias-deg 45 --spacing $d \
+    --out $OUT/bias45/yarn_woven_plain_$d > $OUT/bias45/yarn_woven_plain_$d.log 2>&1
+  for m in particle_kes choi_ko; do
+    $LAB --model $m --tests bending --directions warp --bending-bias-deg 45 --spacing $d --out $OUT/bias45/${m}_cotton_$d > /dev/null 2>&1
+  done
+done
+$LAB --model yarn_woven --model-option weave=plain --tests bending --spacing 0.004 --out $OUT/bias45/yarn_woven_plain_principal_0.004 > /dev/null 2>&1
+for d in 0.001 0.004; do
+  $LAB --model yarn_woven --model-option weave=plain --model-option shear=false --model-option contact=false --model-option friction=false \
+    --model-option sliding_friction=0 --tests bending --directions warp --bending-bias-deg 45 --spacing $d \
+    --out $OUT/bias45/yarn_woven_plain_stretch_bending_only_$d > /dev/null 2>&1
+done
+# The 10 cm square hung by a corner, every run against the yarn model at 1 mm (reference settings).
+$BENCH --scenes small_square_corner --models yarn_woven,particle_kes,choi_ko --model-option yarn_woven:weave=plain \
+  --material particle_kes=$OUT/yarn_woven_plain_1mm/fitted_particle_kes.yaml --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml \
+  --integrators semi_implicit --spacings 0.01,0.005,0.004,0.002 --reference-model yarn_woven --reference-spacing 0.001 --repeats 3 \
+  --max-wall 900 --reference-max-wall 1800 --threads 1 --out $OUT/small_square > $OUT/small_square.log 2>&1
