@@ -3,8 +3,9 @@
 //
 //   speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] [--integrators I,..] [--spacings D,..]
 //                        [--reference-spacing D] [--reference-model M] [--model-option M:KEY=VALUE]...
-//                        [--material M=PATH]... [--repeats N] [--max-wall S] [--reference-max-wall S]
-//                        [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]
+//                        [--material M=PATH]... [--bending-scales M=F,..] [--align-mirror] [--repeats N]
+//                        [--max-wall S] [--reference-max-wall S] [--auto [--auto-tolerance M] [--auto-min-iou X]]
+//                        [--threads N]
 //
 // For each scene: one reference run per model (its finest, most accurate settings at --reference-spacing;
 // with --reference-model, only that model's, and every run is compared with it), then every configuration,
@@ -22,6 +23,9 @@
 // and drawn as its own series, its search is written to DIR/automatic_choice.txt, and front_margin says how
 // far it lies from the front (0 = on it). on_front marks the front of each scene (median ratio, largest node
 // distance).
+// --bending-scales M=F,..: model M runs once per factor F with both bending curves of its material times F
+// (labels "M bend xF"), the way a material is tuned to another model's drape. --align-mirror: a drape held at
+// one point may also match its reference mirrored (DrapeDifferenceOptions::align_mirror; column mirrored).
 //
 // Exit status: 0 done, 2 bad input or usage, 4 outputs cannot be written, 5 another unexpected error.
 #include <algorithm>
@@ -82,6 +86,7 @@ struct Options {
   int repeats = 3;
   AccuracyRunLimits limits;
   bool automatic = false;  // --auto: run the automatic choice per drape scene and mark it
+  bool align_mirror = false;  // --align-mirror: one-point holds also compared mirrored
   db::AutomaticChoiceOptions auto_options;
 };
 
@@ -95,6 +100,7 @@ Options parseOptions(int argc, char** argv) {
   Options o;
   std::vector<std::string> model_names = {"particle_kes", "choi_ko", "yarn_woven"};
   std::vector<std::pair<std::string, std::string>> model_options, materials;
+  std::vector<std::pair<std::string, std::vector<Real>>> bending_scales;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto value = [&]() -> std::string {
@@ -128,6 +134,15 @@ Options parseOptions(int argc, char** argv) {
     else if (a == "--max-wall") o.limits.max_wall_s = parsePositive(value(), a);
     else if (a == "--reference-max-wall") o.limits.reference_max_wall_s = parsePositive(value(), a);
     else if (a == "--auto") o.automatic = true;
+    else if (a == "--align-mirror") o.align_mirror = true;
+    else if (a == "--bending-scales") {
+      const std::string v = value();
+      const auto eq = v.find('=');
+      if (eq == std::string::npos) throw std::invalid_argument("--bending-scales needs MODEL=F,.., got '" + v + "'");
+      std::vector<Real> factors;
+      for (const auto& f : splitList(v.substr(eq + 1))) factors.push_back(parsePositive(f, a));
+      bending_scales.emplace_back(v.substr(0, eq), factors);
+    }
     else if (a == "--auto-tolerance") o.auto_options.named_point_tolerance_m = parsePositive(value(), a);
     else if (a == "--auto-min-iou") o.auto_options.min_mean_iou = parsePositive(value(), a);
     else if (a == "--threads") {
@@ -139,7 +154,8 @@ Options parseOptions(int argc, char** argv) {
       throw std::invalid_argument("unknown option '" + a +
                                   "'; usage: speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] "
                                   "[--integrators I,..] [--spacings D,..] [--reference-spacing D] [--reference-model M] "
-                                  "[--model-option M:KEY=VALUE]... [--material M=PATH]... [--repeats N] [--max-wall S] "
+                                  "[--model-option M:KEY=VALUE]... [--material M=PATH]... [--bending-scales M=F,..] "
+                                  "[--align-mirror] [--repeats N] [--max-wall S] "
                                   "[--reference-max-wall S] [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]");
     }
   }
@@ -157,6 +173,22 @@ Options parseOptions(int argc, char** argv) {
   }
   for (const AccuracyModel& m : o.models) ClothModelRegistry::instance().validate(m.spec);
   for (const auto& mat : materials) findModel(o, mat.first)->material = loadMaterialYaml(mat.second);
+  for (const auto& [name, factors] : bending_scales) {
+    const AccuracyModel base = *findModel(o, name);
+    if (o.reference_model == name) throw std::invalid_argument("--bending-scales: " + name + " is the --reference-model");
+    std::vector<AccuracyModel> variants;
+    for (const Real f : factors) {
+      AccuracyModel m = base;
+      std::ostringstream label;
+      label << name << " bend x" << f;
+      m.label = label.str();
+      m.material = scaledMaterial(base.material, f, 1, 1, base.material.name + "_" + label.str());
+      variants.push_back(m);
+    }
+    auto at = std::find_if(o.models.begin(), o.models.end(), [&](const AccuracyModel& m) { return m.label == name; });
+    at = o.models.erase(at);
+    o.models.insert(at, variants.begin(), variants.end());
+  }
   if (!o.reference_model.empty()) findModel(o, o.reference_model);
   std::sort(o.spacings.begin(), o.spacings.end(), std::greater<Real>());
   o.auto_options.spacings = o.spacings;
@@ -265,8 +297,10 @@ std::vector<ConfigResult> runScene(AccuracyScene scene, const Options& o, std::o
         rl << ref_label << '@' << o.reference_spacing;
         c.reference = rl.str();
         if (!r.failed() && !ref.failed()) {
+          db::DrapeDifferenceOptions diff_options = ref.differenceOptions();
+          diff_options.align_mirror = o.align_mirror && ref.held_at_one_point;
           c.diff = db::measureDrapeDifference({&r.grid, r.positions}, {&ref.grid, ref.positions}, ref.view_centre,
-                                              ref.differenceOptions());
+                                              diff_options);
           c.compared = true;
         }
         r.positions.resize(0);  // keep only what the rows need
@@ -334,7 +368,7 @@ void writeSummaryCsv(const Options& o, const std::vector<ConfigResult>& all) {
   std::ofstream csv(o.out + "/speed_accuracy.csv");
   if (!csv) throw OutputError("cannot write " + o.out + "/speed_accuracy.csv");
   csv << "scene,model,integrator,spacing_m,nodes,status,failed,reference,max_node_distance_m,mean_node_distance_m,"
-         "max_named_point_distance_m,mean_iou,min_iou,yaw_deg,rounds,wall_s_min,wall_s_median,wall_s_max,ratio_min,"
+         "max_named_point_distance_m,mean_iou,min_iou,yaw_deg,mirrored,rounds,wall_s_min,wall_s_median,wall_s_max,ratio_min,"
          "ratio_median,ratio_max,baseline,on_front,auto_choice,front_margin,steps,sim_time_s,note\n";
   for (const ConfigResult& c : all) {
     csv << toString(c.scene) << ',' << c.config.model.label << ',' << toString(c.config.integrator) << ','
@@ -342,9 +376,10 @@ void writeSummaryCsv(const Options& o, const std::vector<ConfigResult>& all) {
         << (c.skipped || c.first.failed() ? 1 : 0) << ',' << c.reference << ',';
     if (c.compared)
       csv << c.diff.max_node_distance << ',' << c.diff.mean_node_distance << ',' << c.diff.max_named_point_distance
-          << ',' << c.diff.mean_iou << ',' << c.diff.min_iou << ',' << c.diff.yaw_deg << ',';
+          << ',' << c.diff.mean_iou << ',' << c.diff.min_iou << ',' << c.diff.yaw_deg << ',' << (c.diff.mirrored ? 1 : 0)
+          << ',';
     else
-      csv << "nan,nan,nan,nan,nan,nan,";
+      csv << "nan,nan,nan,nan,nan,nan,nan,";
     csv << c.walls.size() << ',' << quantile(c.walls, 0) << ',' << quantile(c.walls, 0.5) << ','
         << quantile(c.walls, 1) << ',' << quantile(c.ratios, 0) << ',' << quantile(c.ratios, 0.5) << ','
         << quantile(c.ratios, 1) << ',' << (c.baseline ? 1 : 0) << ',' << (c.on_front ? 1 : 0) << ','

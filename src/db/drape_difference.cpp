@@ -36,6 +36,24 @@ void turnAboutVertical(const Vec3& centre, Real yaw, VecX& x) {
   }
 }
 
+// Mirrors node positions (3 per node) through the vertical plane x = centre.x.
+void mirrorThroughVertical(const Vec3& centre, VecX& x) {
+  for (Eigen::Index i = 0; i < x.size() / 3; ++i) x[3 * i] = 2 * centre.x() - x[3 * i];
+}
+
+// The least-squares turn of pa onto pb about the vertical axis through `centre` (2-D Procrustes: the angle
+// maximising sum (R p_a) . p_b over horizontal offsets) [rad].
+Real bestYaw(const VecX& pa, const VecX& pb, const Vec3& centre) {
+  Real sin_sum = 0, cos_sum = 0;
+  for (Eigen::Index i = 0; i < pa.size() / 3; ++i) {
+    const Real ax = pa[3 * i] - centre.x(), ay = pa[3 * i + 1] - centre.y();
+    const Real bx = pb[3 * i] - centre.x(), by = pb[3 * i + 1] - centre.y();
+    cos_sum += ax * bx + ay * by;
+    sin_sum += ax * by - ay * bx;
+  }
+  return std::atan2(sin_sum, cos_sum);
+}
+
 }  // namespace
 
 DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedDrape& b, const Vec3& view_centre,
@@ -52,20 +70,33 @@ DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedD
   const VecX pb = a_fine ? prolongPositions(*b.grid, b.positions, fine_grid) : b.positions;
   VecX a_for_silhouettes = a.positions;
   DrapeDifference out;
-  if (options.align_yaw) {
-    // 2-D Procrustes about the axis: the angle maximising sum (R p_a) . p_b over horizontal offsets.
-    Real sin_sum = 0, cos_sum = 0;
-    for (Eigen::Index i = 0; i < pa.size() / 3; ++i) {
-      const Real ax = pa[3 * i] - view_centre.x(), ay = pa[3 * i + 1] - view_centre.y();
-      const Real bx = pb[3 * i] - view_centre.x(), by = pb[3 * i + 1] - view_centre.y();
-      cos_sum += ax * bx + ay * by;
-      sin_sum += ax * by - ay * bx;
+  // Interpolation weights sum to 1, so turning or mirroring the interpolated drape equals interpolating the
+  // turned or mirrored one.
+  auto align = [&](bool mirror, VecX& p, VecX& for_silhouettes) {
+    if (mirror) {
+      mirrorThroughVertical(view_centre, p);
+      mirrorThroughVertical(view_centre, for_silhouettes);
     }
-    const Real yaw = std::atan2(sin_sum, cos_sum);
-    // Interpolation weights sum to 1, so turning the interpolated drape equals interpolating the turned one.
-    turnAboutVertical(view_centre, yaw, pa);
-    turnAboutVertical(view_centre, yaw, a_for_silhouettes);
+    Real yaw = 0;
+    if (options.align_yaw) {
+      yaw = bestYaw(p, pb, view_centre);
+      turnAboutVertical(view_centre, yaw, p);
+      turnAboutVertical(view_centre, yaw, for_silhouettes);
+    }
+    return yaw;
+  };
+  if (options.align_mirror) {
+    VecX pm = pa, m_for_silhouettes = a_for_silhouettes;
+    const Real yaw = align(false, pa, a_for_silhouettes), yaw_m = align(true, pm, m_for_silhouettes);
     out.yaw_deg = yaw * 180.0 / kPi;
+    if ((pm - pb).squaredNorm() < (pa - pb).squaredNorm()) {
+      pa.swap(pm);
+      a_for_silhouettes.swap(m_for_silhouettes);
+      out.yaw_deg = yaw_m * 180.0 / kPi;
+      out.mirrored = true;
+    }
+  } else {
+    out.yaw_deg = align(false, pa, a_for_silhouettes) * 180.0 / kPi;
   }
   const Index n = fine_grid.numActive();
   Real sum = 0;

@@ -30,6 +30,13 @@ struct DrapeDifferenceOptions {
   /// the finer grid's nodes) before comparing. For drapes held at one point, whose turn about that point
   /// no force fixes and which recognition finds by its views anyway.
   bool align_yaw = false;
+  /// Also try drape `a` mirrored through the vertical plane x = view_centre.x (each node keeps its
+  /// material point; with align_yaw any vertical plane through the centre is the same) and keep the
+  /// better of the two by the sum of squared node distances. For a sheet held at one point by a model
+  /// whose energy does not change under a mirror (no front or back in the material), the mirror image of
+  /// a rest shape is a rest shape too, and which of the two a run reaches depends on its start and
+  /// rounding.
+  bool align_mirror = false;
 };
 
 struct DrapeDifference {
@@ -39,6 +46,7 @@ struct DrapeDifference {
   Real mean_iou = 0;                  ///< silhouette IoU, mean over the views
   Real min_iou = 0;                   ///< worst view
   Real yaw_deg = 0;                   ///< the turn applied to `a` (align_yaw), about +z [deg]
+  bool mirrored = false;              ///< `a` was compared mirrored (align_mirror)
 };
 
 /// Compares drape `a` with drape `b` of the same textile (grids of any spacings). The drape on the
@@ -47,7 +55,9 @@ struct DrapeDifference {
 /// grid's node nearest to it). Silhouettes: both meshes rendered with `view_centre` [m, world] as the
 /// canonical frame's hold point, IoU without shift. Shapes: a.positions 3 x a.grid->numActive(), the
 /// same for b. With options.align_yaw, drape a is first turned about the vertical axis through
-/// `view_centre` by the least-squares angle (closed form) and everything is measured after the turn. Throws vision::InvalidArgumentError naming the input (null or empty grid, a positions size
+/// `view_centre` by the least-squares angle (closed form) and everything is measured after the turn; with
+/// options.align_mirror, a mirrored copy of a is aligned too and the closer of the two is measured. Throws
+/// vision::InvalidArgumentError naming the input (null or empty grid, a positions size
 /// that does not match, a non-finite position or view centre).
 DrapeDifference measureDrapeDifference(const SimulatedDrape& a, const SimulatedDrape& b, const Vec3& view_centre,
                                        const DrapeDifferenceOptions& options = {});
