@@ -40,3 +40,20 @@ $BENCH --scenes small_square_corner --models yarn_woven,particle_kes,choi_ko --m
   --material particle_kes=$OUT/yarn_woven_plain_1mm/fitted_particle_kes.yaml --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml \
   --integrators semi_implicit --spacings 0.01,0.005,0.004,0.002 --reference-model yarn_woven --reference-spacing 0.001 --repeats 3 \
   --max-wall 900 --reference-max-wall 1800 --threads 1 --out $OUT/small_square > $OUT/small_square.log 2>&1
+# The fitted Choi-Ko model against its own 1 mm drape on the 10 cm square (one round).
+$BENCH --scenes small_square_corner --models choi_ko --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml \
+  --integrators semi_implicit --spacings 0.01,0.005,0.004,0.002 --reference-spacing 0.001 --repeats 1 \
+  --max-wall 900 --reference-max-wall 1800 --threads 1 --out $OUT/small_square_choi_ko_self > $OUT/small_square_choi_ko_self.log 2>&1
+# The fitted Choi-Ko material with its bending curves scaled, mirror images allowed: on the 10 cm square against the
+# yarn model at 1 mm, and on the 30 cm square against the yarn model at 4 mm (the two ran side by side).
+$BENCH --scenes small_square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain \
+  --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2,3,4,6 --align-mirror \
+  --integrators semi_implicit --spacings 0.01,0.005,0.004 --reference-model yarn_woven --reference-spacing 0.001 --repeats 3 \
+  --max-wall 900 --reference-max-wall 1800 --threads 1 --out $OUT/small_square_bending_scales > $OUT/small_square_bending_scales.log 2>&1
+$BENCH --scenes square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain \
+  --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2,3,4,6 --align-mirror \
+  --integrators semi_implicit --spacings 0.01,0.005 --reference-model yarn_woven --reference-spacing 0.004 --repeats 3 \
+  --max-wall 900 --reference-max-wall 1800 --threads 1 --out $OUT/square_bending_scales > $OUT/square_bending_scales.log 2>&1
+# One model's own resolutions with mirror images allowed (towels, cotton, against 0.75 cm; one round).
+$BENCH --scenes towel_corner,towel_edge --models particle_kes,choi_ko --integrators semi_implicit --spacings 0.03,0.02,0.015,0.01 \
+  --reference-spacing 0.0075 --align-mirror --repeats 1 --max-wall 300 --threads 1 --out $OUT/towel_mirror > $OUT/towel_mirror.log 2>&1
