@@ -4,8 +4,8 @@
 //   speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] [--integrators I,..] [--spacings D,..]
 //                        [--reference-spacing D] [--reference-model M] [--model-option M:KEY=VALUE]...
 //                        [--material M=PATH]... [--bending-scales M=F,..] [--align-mirror] [--repeats N]
-//                        [--max-wall S] [--reference-max-wall S] [--auto [--auto-tolerance M] [--auto-min-iou X]]
-//                        [--threads N]
+//                        [--max-wall S] [--reference-max-wall S] [--max-sim-time S]
+//                        [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]
 //
 // For each scene: one reference run per model (its finest, most accurate settings at --reference-spacing;
 // with --reference-model, only that model's, and every run is compared with it), then every configuration,
@@ -26,6 +26,7 @@
 // --bending-scales M=F,..: model M runs once per factor F with both bending curves of its material times F
 // (labels "M bend xF"), the way a material is tuned to another model's drape. --align-mirror: a drape held at
 // one point may also match its reference mirrored (DrapeDifferenceOptions::align_mirror; column mirrored).
+// --max-sim-time S: the drape scenes' simulated-time cap instead of their 8 s.
 //
 // Exit status: 0 done, 2 bad input or usage, 4 outputs cannot be written, 5 another unexpected error.
 #include <algorithm>
@@ -133,6 +134,7 @@ Options parseOptions(int argc, char** argv) {
     } else if (a == "--repeats") o.repeats = static_cast<int>(parsePositive(value(), a));
     else if (a == "--max-wall") o.limits.max_wall_s = parsePositive(value(), a);
     else if (a == "--reference-max-wall") o.limits.reference_max_wall_s = parsePositive(value(), a);
+    else if (a == "--max-sim-time") o.limits.max_sim_time_s = parsePositive(value(), a);
     else if (a == "--auto") o.automatic = true;
     else if (a == "--align-mirror") o.align_mirror = true;
     else if (a == "--bending-scales") {
@@ -155,7 +157,7 @@ Options parseOptions(int argc, char** argv) {
                                   "'; usage: speed_accuracy_bench [--out DIR] [--scenes S,..] [--models M,..] "
                                   "[--integrators I,..] [--spacings D,..] [--reference-spacing D] [--reference-model M] "
                                   "[--model-option M:KEY=VALUE]... [--material M=PATH]... [--bending-scales M=F,..] "
-                                  "[--align-mirror] [--repeats N] [--max-wall S] "
+                                  "[--align-mirror] [--repeats N] [--max-wall S] [--max-sim-time S] "
                                   "[--reference-max-wall S] [--auto [--auto-tolerance M] [--auto-min-iou X]] [--threads N]");
     }
   }

@@ -118,6 +118,7 @@ AccuracyRun runDrape(AccuracyScene scene, const AccuracyConfig& c, const Accurac
   DrapeSceneSpec spec = drapeSpec(scene, c);
   applyIntegrator(spec.settings, c.integrator, reference);
   spec.settings.max_wall_time = reference ? limits.reference_max_wall_s : limits.max_wall_s;
+  if (limits.max_sim_time_s > 0) spec.settings.max_time = limits.max_sim_time_s;
   const Clock::time_point t0 = Clock::now();
   const DrapeScene built = buildDrapeScene(spec);
   DrapeSimulation sim(*built.model, built.pins, spec.settings, built.x0, built.v0);

@@ -1,5 +1,6 @@
 // speed_accuracy_bench as a process: --bending-scales runs one configuration per factor under its own label,
-// --align-mirror adds the mirrored column's evidence, and bad options exit 2 naming the option.
+// --align-mirror adds the mirrored column, --max-sim-time caps the drapes' simulated time, and bad options exit 2
+// naming the option.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -40,6 +41,29 @@ TEST(SpeedAccuracyBenchCli, BendingScalesRunOneLabelledVariantPerFactor) {
   EXPECT_NE(rows[2].find(",particle_kes bend x4@0.02,"), std::string::npos) << rows[2];
   // Four times the bending hangs stiffer: the runs' outputs differ (the rows' distances are not asserted).
   EXPECT_NE(rows[1].substr(rows[1].find("@0.02,")), rows[2].substr(rows[2].find("@0.02,")));
+  std::filesystem::remove_all(dir);
+}
+
+TEST(SpeedAccuracyBenchCli, ASimulatedTimeCapEndsTheDrapesThere) {
+  const std::string dir = textile_handling::test_support::freshTempDir("speed_accuracy_bench_cli_cap");
+  const auto r = runTool(kBench, {"--scenes", "small_square_corner", "--models", "particle_kes", "--max-sim-time", "0.2",
+                                  "--integrators", "semi_implicit", "--spacings", "0.025", "--reference-spacing", "0.02",
+                                  "--repeats", "1", "--threads", "1", "--out", dir});
+  ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+  // runs.csv: scene,model,integrator,spacing_m,round,status,wall_s,steps,sim_time_s,nodes,note
+  const std::vector<std::string> rows = lines(readAll(dir + "/runs.csv"));
+  ASSERT_EQ(rows.size(), 3u);  // header, reference, one configuration
+  for (std::size_t k = 1; k < rows.size(); ++k) {
+    std::vector<std::string> field;
+    std::istringstream in(rows[k]);
+    for (std::string f; std::getline(in, f, ',');) field.push_back(f);
+    ASSERT_GE(field.size(), 9u) << rows[k];
+    EXPECT_EQ(field[5], "time_cap") << rows[k];  // a sheet dropped 0.2 s ago is still moving
+    EXPECT_NEAR(std::stod(field[8]), 0.2, 0.02) << rows[k];
+  }
+  const auto bad = runTool(kBench, {"--max-sim-time", "-1"});
+  EXPECT_EQ(bad.exit_code, 2);
+  EXPECT_NE(bad.err.find("--max-sim-time"), std::string::npos) << bad.err;
   std::filesystem::remove_all(dir);
 }
 

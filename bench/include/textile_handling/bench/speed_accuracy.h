@@ -22,7 +22,7 @@ namespace textile_handling {
 ///    released flat, run to rest (benchmarkTowelSpec(): settle damping 4/s, 8 s cap).
 ///  - square_corner: the 30 x 30 cm square hung by a corner (the sheet of the material fit's comparison).
 ///  - small_square_corner: a 10 x 10 cm square hung by a corner, small enough for the yarn model at the
-///    1 mm spacing its bias bending needs (docs/yarn_model.md, "Limits").
+///    1 mm spacing at which its drape has converged (docs/yarn_model.md, "In scenes: yarn bundles").
 ///  - table_drape: a 48 x 48 cm cloth laid flat over a 24 x 24 cm table (its centre pinned), run to rest;
 ///    both sizes are whole multiples of 3, 2, 1.5, 1 and 0.75 cm, so every grid has the same cloth and table.
 ///  - pushed_edges: the 30 x 30 cm compression scene of stability_scenes.h: one edge pushed 12 cm towards
@@ -56,6 +56,9 @@ struct AccuracyConfig {
 struct AccuracyRunLimits {
   Real max_wall_s = 60;  ///< wall-clock cap of one run [s]; a capped run is a failure
   Real reference_max_wall_s = 600;  ///< the same for a reference run
+  /// Simulated-time cap of the drape scenes [s] (0 = the scene's own, 8 s): a sheet still moving at the
+  /// cap ends as "time_cap".
+  Real max_sim_time_s = 0;
 };
 
 /// The outcome of one run.
