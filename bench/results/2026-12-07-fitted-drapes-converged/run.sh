@@ -57,3 +57,24 @@ $BENCH --scenes square_corner --models yarn_woven,choi_ko --model-option yarn_wo
 # One model's own resolutions with mirror images allowed (towels, cotton, against 0.75 cm; one round).
 $BENCH --scenes towel_corner,towel_edge --models particle_kes,choi_ko --integrators semi_implicit --spacings 0.03,0.02,0.015,0.01 \
   --reference-spacing 0.0075 --align-mirror --repeats 1 --max-wall 300 --threads 1 --out $OUT/towel_mirror > $OUT/towel_mirror.log 2>&1
+# The fitted Choi-Ko model's own bending curve at 1 mm (its soft start below the buckling onset).
+$LAB --model choi_ko --material $OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --tests bending --directions warp --spacing 0.001 \
+  --out $OUT/bending_fitted_choi_ko_0.001 > /dev/null 2>&1
+# Choi-Ko's buckling onset s* (the linear segment below it carries moments growing like kappa^3): the default 0.999 and
+# 0.9999 on the 10 cm square at 4 mm, against the yarn model at 2 mm (reference settings).
+for s in 0.999 0.9999; do
+  $BENCH --scenes small_square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain --model-option choi_ko:buckling_onset=$s \
+    --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2 --align-mirror --integrators semi_implicit \
+    --spacings 0.004 --reference-model yarn_woven --reference-spacing 0.002 --repeats 3 --max-wall 900 --threads 1 \
+    --out $OUT/small_square_onset_$s > $OUT/small_square_onset_$s.log 2>&1
+done
+# The 30 cm square with a 25 s cap (its drapes still move at 8 s): the bending scales at the default onset, and the onset
+# 0.9999 (the two ran side by side).
+$BENCH --scenes square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain \
+  --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2,4 --align-mirror --max-sim-time 25 \
+  --integrators semi_implicit --spacings 0.01,0.005 --reference-model yarn_woven --reference-spacing 0.004 --repeats 3 \
+  --max-wall 900 --reference-max-wall 2400 --threads 1 --out $OUT/square_bending_scales_25s > $OUT/square_bending_scales_25s.log 2>&1
+$BENCH --scenes square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain --model-option choi_ko:buckling_onset=0.9999 \
+  --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2 --align-mirror --max-sim-time 25 \
+  --integrators semi_implicit --spacings 0.005 --reference-model yarn_woven --reference-spacing 0.004 --repeats 3 \
+  --max-wall 900 --reference-max-wall 2400 --threads 1 --out $OUT/square_onset_0.9999_25s > $OUT/square_onset_0.9999_25s.log 2>&1
