@@ -47,6 +47,15 @@ constexpr Real kPlateCalibration = 0.93;
 
 bool positiveFinite(Real v) { return v > 0 && std::isfinite(v); }
 
+// The chord ratio s* = sin(theta*) / theta* of a beam unit (L = 2d, theta* = kappa* L / 2) bent to kappa*.
+Real curvatureOnset(Real kappa, Real d) {
+  const Real theta = kappa * d;
+  if (!positiveFinite(kappa) || !(theta < 1))
+    throw SimError("ChoiKoClothModel: buckling_onset_curvature must be > 0 and below 1 / spacing (" + std::to_string(1 / d) +
+                   " 1/m), got " + std::to_string(kappa));
+  return std::sin(theta) / theta;
+}
+
 }  // namespace
 
 ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& o) {
@@ -103,6 +112,7 @@ ChoiKoClothModel::ChoiKoClothModel(ParticleTopology topology, Material material,
   const Index n = topo_.size();
   if (n < 1) throw SimError("ChoiKoClothModel: no particles");
   params_ = choiKoParameters(material_, options_);
+  if (options_.buckling_onset_curvature > 0) params_.law = choi_ko::makeBucklingLaw(curvatureOnset(options_.buckling_onset_curvature, d));
   const bool hyst = options_.hysteresis.enabled();
 
   mass_.resize(3 * n);

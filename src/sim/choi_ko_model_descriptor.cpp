@@ -33,6 +33,9 @@ ChoiKoOptions parseChoiKoOptions(const std::map<std::string, std::string>& value
   r.readChoice("bending_jacobian", kBendingJacobians, &o.bending_jacobian);
   r.readReal("buckling_onset", 0, true, &o.buckling_onset);
   if (!(o.buckling_onset < 1)) throw ClothModelError("'model.buckling_onset' must be < 1 (model choi_ko)");
+  r.readReal("buckling_onset_curvature_per_m", 0, true, &o.buckling_onset_curvature);
+  if (values.count("buckling_onset") && values.count("buckling_onset_curvature_per_m"))
+    throw ClothModelError("'model.buckling_onset' and 'model.buckling_onset_curvature_per_m' exclude each other (model choi_ko)");
   r.readReal("tensile_stiffness_N_m", 0, true, &o.tensile_stiffness);
   r.readReal("reference_strain", 0, true, &o.reference_strain);
   r.finish();
@@ -53,6 +56,7 @@ ClothModelDescriptor choiKoModelDescriptor() {
                    {"bending_version", "beam | plate"},
                    {"bending_jacobian", "secant | drop_negative | exact"},
                    {"buckling_onset", "s* in (0, 1)"},
+                   {"buckling_onset_curvature_per_m", "kappa* [1/m] > 0: the onset of a beam bent to kappa* on the model's grid (replaces buckling_onset)"},
                    {"tensile_stiffness_N_m", "E_t [N/m], > 0 (default: from the material)"},
                    {"reference_strain", "strain of the secant E_t, > 0"}};
   d.parse_options = [](const std::map<std::string, std::string>& v) { return std::any(parseChoiKoOptions(v)); };
@@ -69,6 +73,9 @@ ClothModelDescriptor choiKoModelDescriptor() {
                       (o.stretch ? "stretch " : "") + (o.shear ? "shear " : "") + (o.bending ? "bending" : ""));
     f.numbers.emplace_back("model_options.settle_damping_per_s", o.settle_damping);
     f.numbers.emplace_back("model_options.buckling_onset", o.buckling_onset);
+    // Only when set, so that the builds of every other configuration keep their parameter text (and resume).
+    if (o.buckling_onset_curvature > 0)
+      f.numbers.emplace_back("model_options.buckling_onset_curvature_per_m", o.buckling_onset_curvature);
     f.numbers.emplace_back("model_options.tensile_stiffness_N_m", o.tensile_stiffness);
     f.numbers.emplace_back("model_options.reference_strain", o.reference_strain);
     return f;

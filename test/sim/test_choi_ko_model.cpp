@@ -931,6 +931,39 @@ TEST(ChoiKoModel, CylindricalBendingEnergyMatchesTheRigidity) {
   }
 }
 
+TEST(ChoiKoModel, AnOnsetCurvatureKeepsGentleBendsOnTheBucklingCurveAtFineSpacings) {
+  // A sheet rolled to kappa = 20 1/m (0.2 1/cm, a drape's gentle bend) at d = 2 mm. With the default chord
+  // onset s* = 0.999 the beams reach the buckling curve only above kappa* = 0.155 / d = 77 1/m, and below
+  // it the linear segment stores energy growing like kappa^4: far less than 1/2 B kappa^2. An onset
+  // curvature of 5 1/m puts the onset below the bend: the energy is the rigidity's but for the part the
+  // segment leaves out, (kappa* / kappa)^2 / 2 = 3 %.
+  const Real d = 0.002, kappa = 20;
+  const int nx = 30, ny = 10;
+  const ParticleTopology topo = topologyOf(rectangle(nx * d, ny * d), d);
+  ChoiKoOptions o;
+  o.gravity = false;
+  o.stretch = o.shear = false;
+  const Real area = nx * ny * d * d;
+  auto energyRatio = [&](const ChoiKoOptions& options) {
+    ChoiKoClothModel m(topo, Material::cotton(), options);
+    const Real expect = 0.5 * m.parameters().bending_rigidity[0] * area * (nx - 1.0) / nx * kappa * kappa;
+    return m.potentialEnergy(rolledState(topo, 1 / kappa)) / expect;
+  };
+  const Real fixed = energyRatio(o);
+  o.buckling_onset_curvature = 5;
+  const Real by_curvature = energyRatio(o);
+  EXPECT_LT(fixed, 0.2) << "default onset";
+  EXPECT_NEAR(by_curvature, 1 - 0.5 * (5.0 / 20) * (5.0 / 20), 0.02) << "onset at 5 1/m";
+  // An onset curvature the grid cannot bend to (kappa* d >= 1) is refused naming it.
+  o.buckling_onset_curvature = 600;
+  try {
+    ChoiKoClothModel bad(topo, Material::cotton(), o);
+    ADD_FAILURE() << "accepted kappa* d = 1.2";
+  } catch (const SimError& e) {
+    EXPECT_NE(std::string(e.what()).find("buckling_onset_curvature"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ChoiKoModel, BendSignFollowsTheGeometry) {
   const ParticleTopology topo = topologyOf(rectangle(0.1, 0.04), 0.01);
   ChoiKoOptions o;

@@ -254,6 +254,12 @@ TEST(ClothModelRegistryTest, BuiltInModelsOptionsAndErrors) {
   EXPECT_NE(error(ClothModelSpec("particle_kes", {{"settle_damping_per_s", "-1"}})).find("model.settle_damping_per_s"),
             std::string::npos);
   EXPECT_NE(error(ClothModelSpec("choi_ko", {{"buckling_onset", "1.5"}})).find("model.buckling_onset"), std::string::npos);
+  EXPECT_NE(error(ClothModelSpec("choi_ko", {{"buckling_onset_curvature_per_m", "0"}})).find("model.buckling_onset_curvature_per_m"),
+            std::string::npos);
+  EXPECT_NE(error(ClothModelSpec("choi_ko", {{"buckling_onset", "0.99"}, {"buckling_onset_curvature_per_m", "5"}}))
+                .find("exclude each other"),
+            std::string::npos);
+  EXPECT_EQ(error(ClothModelSpec("choi_ko", {{"buckling_onset_curvature_per_m", "5"}})), "");
   EXPECT_NE(error(ClothModelSpec("particle_kes", {{"gravity", "maybe"}})).find("model.gravity"), std::string::npos);
   EXPECT_EQ(error(ClothModelSpec("choi_ko", {{"settle_damping_per_s", "4"}, {"bending_version", "plate"}})), "");
   // Registering a taken name fails.

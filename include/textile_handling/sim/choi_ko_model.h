@@ -58,6 +58,11 @@ struct ChoiKoOptions {
   ChoiKoBending bending_version = ChoiKoBending::kBeam;
   /// s* = r/L below which the buckling curve replaces the linear segment (c_b = F0 |g(s*)| / (L (1 - s*))).
   Real buckling_onset = 0.999;
+  /// kappa* [1/m]; > 0 replaces buckling_onset by the onset of a beam unit (L = 2d) bent to kappa* on the
+  /// model's grid, s* = sin(kappa* d) / (kappa* d): bends gentler than kappa*, whose moment grows like
+  /// kappa^3 on the linear segment, then stay below kappa* at every spacing (with a fixed s* they reach
+  /// 0.155 / d: 0.77 1/cm at d = 1 mm; docs/choi_ko.md, "Linear segment below P_cr").
+  Real buckling_onset_curvature = 0;
   /// Jacobian of the bending units. Default: the seed's (eq (7) without its negative term) with the
   /// secant slope where it is steeper; kDropNegative is the seed's alone, which lets a unit on the
   /// buckling curve push with ~P_cr through a whole step and diverges at d = 1 cm, dt = 10 ms
