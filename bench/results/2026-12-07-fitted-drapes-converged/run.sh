@@ -78,3 +78,10 @@ $BENCH --scenes square_corner --models yarn_woven,choi_ko --model-option yarn_wo
   --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml --bending-scales choi_ko=1,2 --align-mirror --max-sim-time 25 \
   --integrators semi_implicit --spacings 0.005 --reference-model yarn_woven --reference-spacing 0.004 --repeats 3 \
   --max-wall 900 --reference-max-wall 2400 --threads 1 --out $OUT/square_onset_0.9999_25s > $OUT/square_onset_0.9999_25s.log 2>&1
+# The fitted Choi-Ko material with the onset given as a curvature (5 1/m), bending x1 and x2, on the 10 cm square against the
+# yarn model at 1 mm.
+$BENCH --scenes small_square_corner --models yarn_woven,choi_ko --model-option yarn_woven:weave=plain \
+  --model-option choi_ko:buckling_onset_curvature_per_m=5 --material choi_ko=$OUT/yarn_woven_plain_1mm/fitted_choi_ko.yaml \
+  --bending-scales choi_ko=1,2 --align-mirror --integrators semi_implicit --spacings 0.01,0.005,0.004,0.002 --reference-model yarn_woven \
+  --reference-spacing 0.001 --repeats 3 --max-wall 900 --reference-max-wall 1800 --threads 1 \
+  --out $OUT/small_square_onset_curvature > $OUT/small_square_onset_curvature.log 2>&1
