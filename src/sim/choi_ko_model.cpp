@@ -50,9 +50,10 @@ bool positiveFinite(Real v) { return v > 0 && std::isfinite(v); }
 // The chord ratio s* = sin(theta*) / theta* of a beam unit (L = 2d, theta* = kappa* L / 2) bent to kappa*.
 Real curvatureOnset(Real kappa, Real d) {
   const Real theta = kappa * d;
-  if (!positiveFinite(kappa) || !(theta < 1))
-    throw SimError("ChoiKoClothModel: buckling_onset_curvature must be > 0 and below 1 / spacing (" + std::to_string(1 / d) +
-                   " 1/m), got " + std::to_string(kappa));
+  // Below kappa* d = 1e-6 the onset 1 - theta^2 / 6 is too close to 1 for the segment's stiffness.
+  if (!positiveFinite(kappa) || !(theta < 1) || !(theta >= 1e-6))
+    throw SimError("ChoiKoClothModel: buckling_onset_curvature must lie in [1e-6, 1) / spacing = [" + std::to_string(1e-6 / d) +
+                   ", " + std::to_string(1 / d) + ") 1/m, got " + std::to_string(kappa));
   return std::sin(theta) / theta;
 }
 
