@@ -59,7 +59,7 @@ Real curvatureOnset(Real kappa, Real d) {
 
 }  // namespace
 
-ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& o) {
+ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& o, Real spacing) {
   auto bad = [](const std::string& m) { throw SimError("ChoiKoClothModel: " + m); };
   if (!(o.tensile_stiffness >= 0) || !std::isfinite(o.tensile_stiffness)) bad("tensile_stiffness must be >= 0");
   if (!(o.shear_stiffness >= 0) || !std::isfinite(o.shear_stiffness)) bad("shear_stiffness must be >= 0");
@@ -99,7 +99,8 @@ ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions&
       !(positiveFinite(p.bending_rigidity[0]) && positiveFinite(p.bending_rigidity[1])))
     bad("bending rigidity must come out > 0 (check the KES bending curves or set bending_rigidity_*)");
   p.diagonal_spring = 2 * p.shear_stiffness;
-  p.law = choi_ko::makeBucklingLaw(o.buckling_onset);
+  p.law = choi_ko::makeBucklingLaw(o.buckling_onset_curvature > 0 ? curvatureOnset(o.buckling_onset_curvature, spacing)
+                                                                  : o.buckling_onset);
   return p;
 }
 
@@ -112,8 +113,7 @@ ChoiKoClothModel::ChoiKoClothModel(ParticleTopology topology, Material material,
   if (!positiveFinite(d)) throw SimError("ChoiKoClothModel: bad spacing");
   const Index n = topo_.size();
   if (n < 1) throw SimError("ChoiKoClothModel: no particles");
-  params_ = choiKoParameters(material_, options_);
-  if (options_.buckling_onset_curvature > 0) params_.law = choi_ko::makeBucklingLaw(curvatureOnset(options_.buckling_onset_curvature, d));
+  params_ = choiKoParameters(material_, options_, d);
   const bool hyst = options_.hysteresis.enabled();
 
   mass_.resize(3 * n);

@@ -95,7 +95,8 @@ struct ChoiKoParameters {
   choi_ko::BucklingLaw law;          ///< linear segment (gamma = c_b L / F0)
 };
 /// Derives the parameters from a material and the options (throws std::invalid_argument on bad values).
-ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& options);
+/// `spacing` [m] is the grid the law is for; needed only with options.buckling_onset_curvature.
+ChoiKoParameters choiKoParameters(const Material& material, const ChoiKoOptions& options, Real spacing = 0);
 
 class ChoiKoClothModel : public ClothModel {
  public:
