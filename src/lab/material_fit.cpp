@@ -13,6 +13,18 @@ const KesBendingResult* findBending(const LabReport& r, YarnDirection d) {
   return nullptr;
 }
 
+const CantileverResult* findCantilever(const LabReport& r, YarnDirection d) {
+  for (const auto& c : r.cantilever)
+    if (c.direction == d) return &c;
+  return nullptr;
+}
+
+// The bending figure of `r` in direction `d` under `figure`; nullptr-safe callers check presence first.
+Real bendingFigure(const LabReport& r, YarnDirection d, BendingFitFigure figure) {
+  if (figure == BendingFitFigure::kCantilever) return findCantilever(r, d)->flexural_rigidity_Nm;
+  return findBending(r, d)->B;
+}
+
 Real meanG(const LabReport& r) {
   Real g = 0;
   for (const auto& s : r.shear) g += s.G;
@@ -67,19 +79,24 @@ struct Knob {
 
 MaterialFitResult fitMaterial(const LabReport& target, const ClothModelSpec& model, Real spacing,
                               const std::string& name, const MaterialFitOptions& options) {
-  const KesBendingResult* bw = findBending(target, YarnDirection::kWarp);
-  const KesBendingResult* bf = findBending(target, YarnDirection::kWeft);
-  if (!bw || !bf || target.shear.empty() || target.tensile.empty())
+  const bool cantilever = options.bending_figure == BendingFitFigure::kCantilever;
+  if (!findBending(target, YarnDirection::kWarp) || !findBending(target, YarnDirection::kWeft) || target.shear.empty() ||
+      target.tensile.empty())
     throw MaterialLabError("fit: the target report needs bending in both directions, shear and tensile");
+  if (cantilever && (!findCantilever(target, YarnDirection::kWarp) || !findCantilever(target, YarnDirection::kWeft)))
+    throw MaterialLabError("fit: fitting the cantilever (fit.bending_figure) needs the target's cantilever in both directions");
   if (options.max_iterations < 1 || options.max_iterations > 50) throw MaterialLabError("fit.max_iterations must be in [1, 50]");
   if (!std::isfinite(options.tolerance) || !(options.tolerance > 0)) throw MaterialLabError("fit.tolerance must be finite and > 0");
   const Real force = options.tension_force_gf_per_cm;
   if (!std::isfinite(force) || force < 0) throw MaterialLabError("fit.tension_force_gf_per_cm must be finite and >= 0");
-  for (const Real v : {bw->B, bf->B, meanG(target), meanStrain(target, force)})
-    if (!std::isfinite(v) || !(v > 0)) throw MaterialLabError("fit: the target's B, G and tensile figure must be finite and > 0");
+  const Real target_warp = bendingFigure(target, YarnDirection::kWarp, options.bending_figure);
+  const Real target_weft = bendingFigure(target, YarnDirection::kWeft, options.bending_figure);
+  for (const Real v : {target_warp, target_weft, meanG(target), meanStrain(target, force)})
+    if (!std::isfinite(v) || !(v > 0))
+      throw MaterialLabError("fit: the target's bending figures, G and tensile figure must be finite and > 0");
 
   const Material start = measuredMaterial(target, name);
-  Knob kb_warp{bw->B}, kb_weft{bf->B}, kg{meanG(target)}, ke{meanStrain(target, force)};
+  Knob kb_warp{target_warp}, kb_weft{target_weft}, kg{meanG(target)}, ke{meanStrain(target, force)};
   ke.exponent = -0.25;  // strain against Y under the particle model's quartic law; the secant corrects it
   MaterialFitResult result;
   LabSample sample;
@@ -110,16 +127,23 @@ MaterialFitResult fitMaterial(const LabReport& target, const ClothModelSpec& mod
     }
     const Material m = sample.material;
     run.sample = sample;
+    // The KES bending runs in either case: with a cantilever fit it shows how the imposed-arc figure compares.
     run.bending = {runKesBending(sample, YarnDirection::kWarp, options.bending),
                    runKesBending(sample, YarnDirection::kWeft, options.bending)};
+    if (cantilever)
+      run.cantilever = {runCantilever(sample, YarnDirection::kWarp, options.cantilever),
+                        runCantilever(sample, YarnDirection::kWeft, options.cantilever)};
     run.shear = {runKesShear(sample, YarnDirection::kWarp, options.shear)};
     result.material = m;
     result.fitted = run;
     result.iterations = it + 1;
-    const Real values[4] = {run.bending[0].B, run.bending[1].B, meanG(run), meanStrain(run, force)};
+    const Real values[4] = {bendingFigure(run, YarnDirection::kWarp, options.bending_figure),
+                            bendingFigure(run, YarnDirection::kWeft, options.bending_figure), meanG(run),
+                            meanStrain(run, force)};
     Knob* knobs[4] = {&kb_warp, &kb_weft, &kg, &ke};
     const std::string tensile_name = force > 0 ? "strain_at_" + figureText(force) + "gf_cm" : "EMT";
-    const char* names[4] = {"B_warp", "B_weft", "G", tensile_name.c_str()};
+    const char* names[4] = {cantilever ? "cantilever_rigidity_warp" : "B_warp",
+                            cantilever ? "cantilever_rigidity_weft" : "B_weft", "G", tensile_name.c_str()};
     result.figures.clear();
     bool all = true;
     for (int k = 0; k < 4; ++k) {

@@ -3,7 +3,8 @@
 //
 //   material_lab [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]
 //                [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]
-//                [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]
+//                [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]]
+//                [--fit-model-option MODEL:KEY=VALUE]... [--fit-bending kes|cantilever] [--fit-spacing M] [--out DIR] [--threads N]
 //
 // Outputs in DIR (default out/material_lab), docs/material_lab.md: figures.csv (every figure with the value
 // the material file implies where it has one), <test>_<direction>.csv (the curves), <test>.png (the curves
@@ -41,7 +42,8 @@ constexpr int kExitOutput = 4;
 const char* kUsage =
     " [--model NAME] [--model-option KEY=VALUE]... [--material cotton|PATH] [--spacing M]\n"
     "       [--tests bending,shear,tensile,cantilever,drape] [--directions warp,weft] [--drape-spacing M]\n"
-    "       [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]] [--out DIR] [--threads N]\n";
+    "       [--shear-max-angle DEG] [--shear-pretension-strain E] [--bending-bias-deg DEG] [--fit MODEL[,MODEL]]\n"
+    "       [--fit-model-option MODEL:KEY=VALUE]... [--fit-bending kes|cantilever] [--fit-spacing M] [--out DIR] [--threads N]\n";
 
 int usage(const char* argv0, const std::string& problem = "") {
   if (!problem.empty()) std::cerr << "material_lab: " << problem << "\n";
@@ -57,6 +59,9 @@ struct Options {
   KesShearProtocol shear;
   KesBendingProtocol bending;
   std::vector<std::string> fit_models;
+  std::map<std::string, std::vector<std::pair<std::string, std::string>>> fit_model_options;  // model -> key, value
+  MaterialFitOptions fit;
+  double fit_spacing = 0;  // 0 = the sample's
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
   std::string out_dir = "out/material_lab";
   int threads = 0;
@@ -123,6 +128,18 @@ std::string parseArguments(int argc, char** argv, Options& o) {
     } else if (a == "--fit") {
       o.fit_models = splitList(value);
       if (o.fit_models.empty()) return "--fit is empty";
+    } else if (a == "--fit-model-option") {
+      const auto colon = value.find(':'), eq = value.find('=');
+      if (colon == std::string::npos || colon == 0 || eq == std::string::npos || eq < colon + 2)
+        return "--fit-model-option must be MODEL:KEY=VALUE, got '" + value + "'";
+      o.fit_model_options[value.substr(0, colon)].emplace_back(value.substr(colon + 1, eq - colon - 1), value.substr(eq + 1));
+    } else if (a == "--fit-bending") {
+      if (value == "kes") o.fit.bending_figure = BendingFitFigure::kKesB;
+      else if (value == "cantilever") o.fit.bending_figure = BendingFitFigure::kCantilever;
+      else return "--fit-bending must be kes or cantilever (fit.bending_figure), got '" + value + "'";
+    } else if (a == "--fit-spacing") {
+      if (!parseNumberIn(value, 1e-4, 0.05, &o.fit_spacing))
+        return "--fit-spacing must be a number of metres in [1e-4, 0.05], got '" + value + "'";
     } else if (a == "--out") {
       o.out_dir = value;
     } else if (a == "--threads") {
@@ -131,6 +148,16 @@ std::string parseArguments(int argc, char** argv, Options& o) {
     } else {
       return "unknown option " + a;
     }
+  }
+  for (const auto& entry : o.fit_model_options) {
+    bool fitted = false;
+    for (const auto& m : o.fit_models) fitted = fitted || m == entry.first;
+    if (!fitted) return "--fit-model-option names " + entry.first + ", which --fit does not fit";
+  }
+  if (o.fit.bending_figure == BendingFitFigure::kCantilever) {
+    bool has = false;
+    for (const auto& t : o.tests) has = has || t == "cantilever";
+    if (!has || o.directions.size() != 2) return "--fit-bending cantilever needs the cantilever test in both directions (--tests, --directions)";
   }
   if (!o.fit_models.empty() && (o.bending.bias_deg != 0 || o.shear.pretension_strain != 0 || o.shear.max_angle_deg != 8))
     return "--fit fits the standard KES figures; it cannot be combined with --bending-bias-deg, --shear-pretension-strain "
@@ -155,6 +182,15 @@ void chart(const std::string& path, const std::vector<std::pair<std::string, con
   if (!writeLineChart(path, points, x_label, y_label, title, &error)) throw OutputError(path + ": " + error);
 }
 
+// A model of --fit with its --fit-model-option settings.
+ClothModelSpec fittedModel(const Options& o, const std::string& name) {
+  ClothModelSpec spec(name);
+  const auto it = o.fit_model_options.find(name);
+  if (it != o.fit_model_options.end())
+    for (const auto& kv : it->second) spec.set(kv.first, kv.second);
+  return spec;
+}
+
 int run(const Options& o) {
   std::string note;
   applyThreadLimit(o.threads, &note);
@@ -163,7 +199,7 @@ int run(const Options& o) {
   try {
     sample.material = o.material == "cotton" ? Material::cotton() : loadMaterialYaml(o.material);
     ClothModelRegistry::instance().validate(sample.model);
-    for (const auto& m : o.fit_models) ClothModelRegistry::instance().validate(ClothModelSpec(m));
+    for (const auto& m : o.fit_models) ClothModelRegistry::instance().validate(fittedModel(o, m));
   } catch (const std::exception& e) {
     std::cerr << "material_lab: " << e.what() << "\n";
     return kExitBadInput;
@@ -208,7 +244,8 @@ int run(const Options& o) {
   for (const auto& m : o.fit_models) {
     std::cout << "  fit " << m << " ..." << std::flush;
     try {
-      fits.push_back(fitMaterial(report, ClothModelSpec(m), sample.spacing, sample.material.name + "_fit_" + m));
+      fits.push_back(fitMaterial(report, fittedModel(o, m), o.fit_spacing > 0 ? o.fit_spacing : sample.spacing,
+                                 sample.material.name + "_fit_" + m, o.fit));
       std::cout << (fits.back().converged ? " converged" : " NOT converged") << " after " << fits.back().iterations
                 << " lab runs\n";
       if (!fits.back().converged) ++failed;
@@ -261,9 +298,13 @@ int run(const Options& o) {
     for (std::size_t k = 0; k < fits.size(); ++k) {
       const std::string model = fits[k].fitted.sample.model.name;
       writeFileAtomically(d + "/fitted_" + model + ".yaml", [&](std::ostream& f) {
-        f << "# Fitted by material_lab: " << model << " with this material reproduces B, G and the tensile figure of "
-          << sample.model.text() << " (" << sample.material.name << ") at d = " << sample.spacing << " m"
-          << (fits[k].converged ? "" : " (NOT converged)") << "\n"
+        const LabSample& fitted = fits[k].fitted.sample;
+        f << "# Fitted by material_lab: " << fitted.model.text() << " at d = " << fitted.spacing
+          << " m with this material reproduces "
+          << (o.fit.bending_figure == BendingFitFigure::kCantilever ? "the cantilever rigidity" : "B")
+          << ", G and the tensile figure of " << sample.model.text() << " (" << sample.material.name << ") at d = "
+          << sample.spacing << " m" << (fits[k].converged ? "" : " (NOT converged)") << "\n"
+          << (fitted.model.options.empty() ? "" : "# Use it with the same model options; they are not part of the material file.\n")
           << materialToYaml(fits[k].material);
       });
       writeFileAtomically(d + "/fit_" + model + ".csv", [&](std::ostream& f) {

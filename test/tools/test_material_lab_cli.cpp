@@ -36,6 +36,21 @@ TEST(MaterialLabCli, BadArgumentsExitWithTwoNamingTheOption) {
   const auto r7 = runTool(kMaterialLab, {"--bending-bias-deg", "45", "--fit", "particle_kes"});
   EXPECT_EQ(r7.exit_code, 2);
   EXPECT_NE(r7.err.find("--fit"), std::string::npos) << r7.err;
+  const auto r8 = runTool(kMaterialLab, {"--fit", "choi_ko", "--fit-bending", "elastica"});
+  EXPECT_EQ(r8.exit_code, 2);
+  EXPECT_NE(r8.err.find("fit.bending_figure"), std::string::npos) << r8.err;
+  const auto r9 = runTool(kMaterialLab, {"--fit", "choi_ko", "--fit-model-option", "particle_kes:jacobian=exact"});
+  EXPECT_EQ(r9.exit_code, 2);
+  EXPECT_NE(r9.err.find("particle_kes, which --fit does not fit"), std::string::npos) << r9.err;
+  const auto r10 = runTool(kMaterialLab, {"--fit", "choi_ko", "--fit-bending", "cantilever", "--tests", "bending,shear,tensile"});
+  EXPECT_EQ(r10.exit_code, 2);
+  EXPECT_NE(r10.err.find("cantilever test in both directions"), std::string::npos) << r10.err;
+  const auto r11 = runTool(kMaterialLab, {"--fit", "choi_ko", "--fit-model-option", "choi_ko:no_such_key=1", "--out", "/tmp/unused"});
+  EXPECT_EQ(r11.exit_code, 2);
+  EXPECT_NE(r11.err.find("no_such_key"), std::string::npos) << r11.err;
+  const auto r12 = runTool(kMaterialLab, {"--fit-spacing", "1"});
+  EXPECT_EQ(r12.exit_code, 2);
+  EXPECT_NE(r12.err.find("--fit-spacing"), std::string::npos) << r12.err;
 }
 
 TEST(MaterialLabCli, ARunWritesCurvesChartsFiguresAndTheMeasuredMaterial) {
