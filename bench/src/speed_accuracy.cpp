@@ -17,7 +17,7 @@ const std::vector<std::pair<std::string, AccuracyScene>>& sceneNames() {
   static const std::vector<std::pair<std::string, AccuracyScene>> names = {
       {"towel_corner", AccuracyScene::kTowelCorner}, {"towel_edge", AccuracyScene::kTowelEdge},
       {"square_corner", AccuracyScene::kSquareCorner}, {"small_square_corner", AccuracyScene::kSmallSquareCorner},
-      {"table_drape", AccuracyScene::kTableDrape},
+      {"small_sheet_edge", AccuracyScene::kSmallSheetEdge}, {"table_drape", AccuracyScene::kTableDrape},
       {"pushed_edges", AccuracyScene::kPushedEdges}};
   return names;
 }
@@ -74,6 +74,19 @@ TextileOutline squareCloth(const std::string& name, Real side) {
   return t;
 }
 
+// The 16 x 8 cm sheet of small_sheet_edge: the square's points plus the middle of its left short side.
+TextileOutline smallSheet() {
+  TextileOutline t = squareCloth("small_sheet", 0.16);
+  t.outline = {Vec2(0, 0), Vec2(0.16, 0), Vec2(0.16, 0.08), Vec2(0, 0.08)};
+  t.named_points = {{"corner_ll", "corner", Vec2(0, 0)},
+                    {"corner_lr", "corner", Vec2(0.16, 0)},
+                    {"corner_ur", "corner", Vec2(0.16, 0.08)},
+                    {"corner_ul", "corner", Vec2(0, 0.08)},
+                    {"short_side_left_mid", "grasp", Vec2(0, 0.04)},
+                    {"centre", "grasp", Vec2(0.08, 0.04)}};
+  return t;
+}
+
 DrapeSceneSpec drapeSpec(AccuracyScene scene, const AccuracyConfig& c) {
   DrapeSceneSpec s;
   switch (scene) {
@@ -90,6 +103,10 @@ DrapeSceneSpec drapeSpec(AccuracyScene scene, const AccuracyConfig& c) {
     case AccuracyScene::kSmallSquareCorner:
       s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);
       s.textile = squareCloth("small_square", 0.10);
+      break;
+    case AccuracyScene::kSmallSheetEdge:
+      s = benchmarkTowelSpec(c.spacing, "short_side_left_mid", c.model.spec.name);
+      s.textile = smallSheet();
       break;
     case AccuracyScene::kTableDrape:
       s = benchmarkTowelSpec(c.spacing, "corner_ul", c.model.spec.name);

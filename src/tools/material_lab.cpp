@@ -311,6 +311,12 @@ int run(const Options& o) {
         f.precision(8);
         f << "figure,target,fitted,factor\n";
         for (const auto& g : fits[k].figures) f << g.name << ',' << g.target << ',' << g.fitted << ',' << g.factor << '\n';
+        // Not fitted with --fit-bending cantilever: the KES B of both, which then differ.
+        if (o.fit.bending_figure == BendingFitFigure::kCantilever)
+          for (const auto& target_bending : report.bending)
+            for (const auto& fitted_bending : fits[k].fitted.bending)
+              if (fitted_bending.direction == target_bending.direction)
+                f << "B_" << toString(target_bending.direction) << ',' << target_bending.B << ',' << fitted_bending.B << ",\n";
         // Not fitted: how the fitted model drapes the disc sample against the tested model.
         if (!report.drape.empty() && !fits[k].fitted.drape.empty())
           f << "DC," << report.drape.front().drape_coefficient << ',' << fits[k].fitted.drape.front().drape_coefficient << ",\n";

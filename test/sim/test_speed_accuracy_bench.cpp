@@ -66,6 +66,28 @@ TEST(SpeedAccuracyScene, TheCompressionSceneRunsAFiveDofModel) {
   EXPECT_NEAR(max_x, 0.18, 0.01);
 }
 
+TEST(SpeedAccuracyScene, TheSmallSheetHangsFromTheMiddleOfAShortSide) {
+  EXPECT_EQ(accuracySceneFromString("small_sheet_edge"), AccuracyScene::kSmallSheetEdge);
+  EXPECT_EQ(toString(AccuracyScene::kSmallSheetEdge), "small_sheet_edge");
+  AccuracyConfig c;
+  c.model.spec = ClothModelSpec("particle_kes");
+  c.spacing = 0.02;
+  const AccuracyRun r = runAccuracyScene(AccuracyScene::kSmallSheetEdge, c, AccuracyRunLimits{});
+  ASSERT_EQ(r.status, "rest") << r.note;
+  EXPECT_EQ(r.nodes, 45);  // 9 x 5 nodes on the 16 x 8 cm sheet at 2 cm
+  EXPECT_TRUE(r.held_at_one_point);
+  // Held at (0, 4 cm), it hangs its length down: the far corners about 16-17 cm below the 1 m hold.
+  Real top = -1e9, bottom = 1e9;
+  for (Index i = 0; i < r.nodes; ++i) {
+    top = std::max(top, r.positions[3 * i + 2]);
+    bottom = std::min(bottom, r.positions[3 * i + 2]);
+  }
+  EXPECT_LT(top, 1.0 + 1e-3);
+  EXPECT_GT(top - bottom, 0.13);
+  EXPECT_LT(top - bottom, 0.18);
+  EXPECT_NEAR(r.differenceOptions().frame.width_px * r.differenceOptions().frame.metres_per_pixel, 0.25, 1e-9);
+}
+
 TEST(SpeedAccuracyScene, TheSmallSquareHangsTenCentimetresFromACorner) {
   EXPECT_EQ(accuracySceneFromString("small_square_corner"), AccuracyScene::kSmallSquareCorner);
   EXPECT_EQ(toString(AccuracyScene::kSmallSquareCorner), "small_square_corner");

@@ -23,11 +23,13 @@ namespace textile_handling {
 ///  - square_corner: the 30 x 30 cm square hung by a corner (the sheet of the material fit's comparison).
 ///  - small_square_corner: a 10 x 10 cm square hung by a corner, small enough for the yarn model at the
 ///    1 mm spacing at which its drape has converged (docs/yarn_model.md, "In scenes: yarn bundles").
+///  - small_sheet_edge: a 16 x 8 cm sheet hung by the middle of a short side, the second sheet of that size
+///    (another aspect and another kind of hold) for checking a fitted material.
 ///  - table_drape: a 48 x 48 cm cloth laid flat over a 24 x 24 cm table (its centre pinned), run to rest;
 ///    both sizes are whole multiples of 3, 2, 1.5, 1 and 0.75 cm, so every grid has the same cloth and table.
 ///  - pushed_edges: the 30 x 30 cm compression scene of stability_scenes.h: one edge pushed 12 cm towards
 ///    the other in 1 s, held 1 s; fixed steps (the scene's design), gravity off.
-enum class AccuracyScene { kTowelCorner, kTowelEdge, kSquareCorner, kSmallSquareCorner, kTableDrape, kPushedEdges };
+enum class AccuracyScene { kTowelCorner, kTowelEdge, kSquareCorner, kSmallSquareCorner, kSmallSheetEdge, kTableDrape, kPushedEdges };
 std::string toString(AccuracyScene s);
 /// Parses the names above; throws std::invalid_argument listing them.
 AccuracyScene accuracySceneFromString(const std::string& s);
