@@ -54,6 +54,20 @@ SearchRun simulate(const DrapeSceneSpec& spec) {
 
 bool supportedScene(const DrapeSceneSpec& s) { return !s.pinned_regions.empty() || !s.obstacles.empty(); }
 
+// Compares two usable runs of `sample` (a against the finer or tighter b) into e: named points, nodes and
+// silhouettes, turned about the hold axis for a one-point hold.
+void measureAgreement(const DrapeSceneSpec& sample, const SearchRun& a, const SearchRun& b, DrapeDifferenceOptions diff,
+                      const AutomaticChoiceOptions& options, AutomaticChoiceEvidence& e) {
+  for (const NamedPoint& p : sample.textile.named_points) diff.named_points.push_back(p.position);
+  diff.align_yaw = sample.hold.size() == 1 && !supportedScene(sample);
+  const DrapeDifference m = measureDrapeDifference({&a.grid, a.positions}, {&b.grid, b.positions}, sample.hold_position, diff);
+  e.status = "compared";
+  e.named_point_distance = m.max_named_point_distance;
+  e.max_node_distance = m.max_node_distance;
+  e.mean_iou = m.mean_iou;
+  e.agrees = m.max_named_point_distance <= options.named_point_tolerance_m && m.mean_iou >= options.min_mean_iou;
+}
+
 std::string number(Real v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.3g", v);
@@ -87,16 +101,23 @@ void AutomaticChoiceOptions::validate() const {
     throw InvalidInputError("automatic choice: named_point_tolerance_m must be finite and > 0");
   if (!(min_mean_iou >= 0 && min_mean_iou <= 1))
     throw InvalidInputError("automatic choice: min_mean_iou must be in [0, 1]");
+  for (Real f : error_tolerance_factors)
+    if (!(std::isfinite(f) && f > 1 && f <= 1000))
+      throw InvalidInputError("automatic choice: error_tolerance_factors must each be finite and in (1, 1000]");
 }
 
 std::string AutomaticChoice::text() const {
   std::ostringstream t;
   t << "model " << model.name << " (" << model_reason << "), spacing " << number(spacing) << " m, integrator "
-    << toString(settings.integrator) << ", policy " << toString(settings.policy)
+    << toString(settings.integrator) << ", policy " << toString(settings.policy) << " (step error tolerance "
+    << number(settings.error_tolerance) << " m)"
     << (converged ? "" : " (no candidate agreed with every finer one: the finest that completes was taken)") << "\n";
   for (const AutomaticChoiceEvidence& e : evidence) {
-    t << "evidence " << e.model << " hold " << e.hold << " d " << number(e.spacing) << " vs " << number(e.finer_spacing)
-      << ": ";
+    t << "evidence " << e.model << " hold " << e.hold << " d " << number(e.spacing);
+    if (e.error_tolerance != e.reference_error_tolerance)
+      t << " step tolerance " << number(e.error_tolerance) << " vs " << number(e.reference_error_tolerance) << ": ";
+    else
+      t << " vs " << number(e.finer_spacing) << ": ";
     if (e.status == "compared")
       t << "named points " << number(e.named_point_distance) << " m, nodes " << number(e.max_node_distance)
         << " m, IoU " << number(e.mean_iou) << (e.agrees ? " agrees" : " differs");
@@ -170,58 +191,61 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
     ClothModelSpec model = settlingModelSpec(model_name, 4.0);
     if (samples.front().model.name == model_name)
       for (const auto& kv : samples.front().model.options) model.options[kv.first] = kv.second;
+    // Sample i at spacing d (and the search's settings, or another step error tolerance), simulated once.
+    auto simulateSample = [&](std::size_t i, Real spacing, Real error_tolerance) {
+      DrapeSceneSpec spec = samples[i];
+      spec.model = model;
+      spec.spacing = spacing;
+      spec.settings = choice.settings;
+      spec.settings.error_tolerance = error_tolerance;
+      SearchRun r = simulate(spec);
+      if (options.on_progress)
+        options.on_progress(model_name + " hold " + (spec.hold.empty() ? std::string("regions") : spec.hold.front().label()) +
+                            " d " + number(spacing) + " m" +
+                            (error_tolerance != choice.settings.error_tolerance ? " step tolerance " + number(error_tolerance) + " m" : "") +
+                            ": " + r.status + " in " + number(r.wall_s) + " s");
+      return r;
+    };
     std::map<std::pair<std::size_t, std::size_t>, SearchRun> runs;  // (sample, spacing index)
     auto run = [&](std::size_t i, std::size_t k) -> const SearchRun& {
       auto it = runs.find({i, k});
       if (it != runs.end()) return it->second;
-      DrapeSceneSpec spec = samples[i];
-      spec.model = model;
-      spec.spacing = d[k];
-      spec.settings = choice.settings;
-      SearchRun r = simulate(spec);
-      if (options.on_progress)
-        options.on_progress(model_name + " hold " + (spec.hold.empty() ? std::string("regions") : spec.hold.front().label()) +
-                            " d " + number(d[k]) + " m: " + r.status + " in " + number(r.wall_s) + " s");
-      return runs.emplace(std::make_pair(i, k), std::move(r)).first->second;
+      return runs.emplace(std::make_pair(i, k), simulateSample(i, d[k], choice.settings.error_tolerance)).first->second;
     };
     bool particle_failed = false;
-    // Sample i at spacing d[k] against d[j] (j finer), recorded as evidence.
+    // Run a of sample i against run b (finer spacing or tighter steps), recorded as evidence `e`, whose
+    // status says what failed when one of the runs is not usable.
+    auto record = [&](std::size_t i, const SearchRun& a, const SearchRun& b, AutomaticChoiceEvidence e) -> bool {
+      e.hold = samples[i].hold.empty() ? "regions" : samples[i].hold.front().label();
+      e.model = model_name;
+      e.wall_s = a.wall_s + b.wall_s;
+      if (a.usable && b.usable) measureAgreement(samples[i], a, b, diff, options, e);
+      choice.evidence.push_back(e);
+      return e.agrees;
+    };
+    // Sample i at spacing d[k] against d[j] (j finer).
     auto compare = [&](std::size_t i, std::size_t k, std::size_t j) -> bool {
       const SearchRun& a = run(i, k);
       const SearchRun& b = run(i, j);
+      if (model_name == "particle_kes" && (a.diverged || b.diverged)) particle_failed = true;
       AutomaticChoiceEvidence e;
-      e.hold = samples[i].hold.empty() ? "regions" : samples[i].hold.front().label();
-      e.model = model_name;
       e.spacing = d[k];
       e.finer_spacing = d[j];
-      e.wall_s = a.wall_s + b.wall_s;
-      if (model_name == "particle_kes" && (a.diverged || b.diverged)) particle_failed = true;
-      if (!a.usable || !b.usable) {
-        e.status = "d " + number(a.usable ? d[j] : d[k]) + ": " + (a.usable ? b.status : a.status);
-      } else {
-        diff.named_points.clear();
-        for (const NamedPoint& p : samples[i].textile.named_points) diff.named_points.push_back(p.position);
-        diff.align_yaw = samples[i].hold.size() == 1 && !supportedScene(samples[i]);
-        const DrapeDifference m = measureDrapeDifference({&a.grid, a.positions}, {&b.grid, b.positions},
-                                                         samples[i].hold_position, diff);
-        e.status = "compared";
-        e.named_point_distance = m.max_named_point_distance;
-        e.max_node_distance = m.max_node_distance;
-        e.mean_iou = m.mean_iou;
-        e.agrees = m.max_named_point_distance <= options.named_point_tolerance_m && m.mean_iou >= options.min_mean_iou;
-      }
-      choice.evidence.push_back(e);
-      return e.agrees;
+      e.error_tolerance = e.reference_error_tolerance = choice.settings.error_tolerance;
+      e.status = "d " + number(a.usable ? d[j] : d[k]) + ": " + (a.usable ? b.status : a.status);
+      return record(i, a, b, e);
     };
     // A spacing is taken only when it agrees with every finer candidate: agreeing with the next one alone
     // can be two coarse drapes that fold alike and far from the fine one (the table drape at 2 and 1.5 cm).
     bool chosen = false;
+    std::size_t chosen_k = 0;
     for (std::size_t k = 0; k + 1 < d.size() && !chosen && !particle_failed; ++k) {
       bool all_agree = true;
       for (std::size_t j = k + 1; j < d.size() && all_agree && !particle_failed; ++j)
         for (std::size_t i = 0; i < samples.size() && all_agree && !particle_failed; ++i) all_agree = compare(i, k, j);
       if (all_agree && !particle_failed) {
         choice.spacing = d[k];
+        chosen_k = k;
         choice.converged = true;
         chosen = true;
       }
@@ -244,11 +268,34 @@ AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, 
         }
         if (usable) {
           choice.spacing = d[k];
+          chosen_k = k;
           chosen = true;
         }
       }
       if (!chosen)
         throw InvalidInputError("automatic choice (" + model_name + "): no candidate spacing completes on every sample:" + why);
+    }
+    // The step tolerance, loosest candidate first: taken when its drape agrees with the samples' own
+    // tolerance's on every sample (a run that fails or does not come to rest disagrees).
+    std::vector<Real> factors = options.error_tolerance_factors;
+    std::sort(factors.begin(), factors.end(), std::greater<Real>());
+    const Real own_tolerance = choice.settings.error_tolerance;
+    for (Real f : factors) {
+      bool all_agree = true;
+      for (std::size_t i = 0; i < samples.size() && all_agree; ++i) {
+        const SearchRun& own = run(i, chosen_k);
+        AutomaticChoiceEvidence e;
+        e.spacing = e.finer_spacing = d[chosen_k];
+        e.error_tolerance = f * own_tolerance;
+        e.reference_error_tolerance = own_tolerance;
+        const SearchRun loose = simulateSample(i, d[chosen_k], f * own_tolerance);
+        e.status = loose.usable ? "reference: " + own.status : loose.status;
+        all_agree = record(i, loose, own, e);
+      }
+      if (all_agree) {
+        choice.settings.error_tolerance = f * own_tolerance;
+        break;
+      }
     }
     choice.model = model;
     break;

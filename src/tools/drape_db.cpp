@@ -3,7 +3,8 @@
 //
 //   drape_db build  --db DB --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
 //                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
-//                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N] [--question Q]]
+//                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N]
+//                           [--auto-step-factors F,..|none] [--question Q]]
 //                   [--mpi] [--claim-lease S] [--progress-records]
 //   drape_db build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--progress-records]
 //   drape_db list   --db DB [--simulations] [--textile NAME] [--check]
@@ -93,7 +94,7 @@ const char* kUsage =
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
     "         [--auto [--auto-spacings D,D,..] [--auto-tolerance M=0.03] [--auto-min-iou X=0.85]\n"
-    "                 [--auto-samples N=3] [--question none|pull_out|sliding|tearing]]\n"
+    "                 [--auto-samples N=3] [--auto-step-factors F,..=3|none] [--question none|pull_out|sliding|tearing]]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
     "         [--mpi] [--claim-lease S=60] [--progress-records]\n"
     "  build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--quiet] [--progress-records]\n"
@@ -270,7 +271,7 @@ int cmdBuildJob(const Args& a) {
   });
 }
 
-// --auto: model, spacing, integrator and policy from the resolution search on a spread sample of the build's
+// --auto: model, spacing, integrator, policy and step tolerance from the search on a spread sample of the build's
 // hold points (automatic_configuration.h); the choice and its evidence are printed and go into the build's
 // parameter text.
 void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildConfig& c) {
@@ -284,6 +285,13 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   }
   if (a.has("--auto-tolerance")) o.named_point_tolerance_m = number(a.get("--auto-tolerance"), "--auto-tolerance");
   if (a.has("--auto-min-iou")) o.min_mean_iou = number(a.get("--auto-min-iou"), "--auto-min-iou");
+  // A build's own step tolerance (0.1 mm) is set for its rest detection; the search tries 3 times it.
+  const std::string factors = a.get("--auto-step-factors", "3");
+  if (factors != "none") {
+    std::stringstream list(factors);
+    for (std::string item; std::getline(list, item, ',');)
+      o.error_tolerance_factors.push_back(number(item, "--auto-step-factors"));
+  }
   const Real samples = number(a.get("--auto-samples", "3"), "--auto-samples");
   if (!(samples >= 1 && samples <= 20 && samples == std::floor(samples)))
     throw UsageError("--auto-samples must be a whole number in [1, 20]");
@@ -327,15 +335,16 @@ int cmdBuild(const Args& a) {
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
                "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members",
-               "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question",
-               "--mpi", "--claim-lease"});
+               "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors",
+               "--question", "--mpi", "--claim-lease"});
   if (a.has("--mpi") && a.has("--auto"))
     throw UsageError("--auto cannot run on a farm (--mpi): run it once without --mpi and pass its choice");
   if (a.has("--auto"))
     for (const char* fixed_by_auto : {"--spacing", "--model", "--integrator", "--policy"})
       if (a.has(fixed_by_auto))
         throw UsageError(std::string("--auto chooses the model, spacing, integrator and policy: drop ") + fixed_by_auto);
-  for (const char* auto_only : {"--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--question"})
+  for (const char* auto_only :
+       {"--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors", "--question"})
     if (a.has(auto_only) && !a.has("--auto")) throw UsageError(std::string(auto_only) + " needs --auto");
   DrapeBuildConfig c;
   try {

@@ -160,6 +160,41 @@ TEST(AutomaticConfiguration, ModelRule) {
   EXPECT_NE(y.text().find("pull_out"), std::string::npos);
 }
 
+TEST(AutomaticConfiguration, TheLoosestStepToleranceThatAgreesIsTaken) {
+  // Generous agreement: the coarsest spacing, then the loosest step tolerance that completes and agrees.
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.spacings = {0.06, 0.04};
+  o.named_point_tolerance_m = 10;
+  o.min_mean_iou = 0;
+  o.error_tolerance_factors = {2, 4};
+  const DrapeSceneSpec square = hangingSquare();
+  const Real own = square.settings.error_tolerance;
+  const AutomaticChoice loose = chooseConfiguration({square}, o);
+  EXPECT_DOUBLE_EQ(loose.spacing, 0.06);
+  EXPECT_DOUBLE_EQ(loose.settings.error_tolerance, 4 * own);
+  ASSERT_EQ(loose.evidence.size(), 2u);  // 0.06 vs 0.04, then 4x against the own tolerance at 0.06
+  EXPECT_DOUBLE_EQ(loose.evidence[1].spacing, 0.06);
+  EXPECT_DOUBLE_EQ(loose.evidence[1].error_tolerance, 4 * own);
+  EXPECT_DOUBLE_EQ(loose.evidence[1].reference_error_tolerance, own);
+  EXPECT_EQ(loose.evidence[1].status, "compared");
+  EXPECT_GT(loose.evidence[1].named_point_distance, 0);  // another run, not the own one again
+  EXPECT_NE(loose.text().find("d 0.06 step tolerance"), std::string::npos) << loose.text();
+  EXPECT_NE(loose.text().find("(step error tolerance"), std::string::npos) << loose.text();
+
+  // Agreement stricter than any two runs meet: no spacing agrees (the finest is taken) and no looser step
+  // tolerance agrees, so the own one is kept; both factors were tried, the loosest first.
+  o.named_point_tolerance_m = 1e-9;
+  const AutomaticChoice strict = chooseConfiguration({square}, o);
+  EXPECT_FALSE(strict.converged);
+  EXPECT_DOUBLE_EQ(strict.spacing, 0.04);
+  EXPECT_DOUBLE_EQ(strict.settings.error_tolerance, own);
+  ASSERT_EQ(strict.evidence.size(), 3u);
+  EXPECT_DOUBLE_EQ(strict.evidence[1].error_tolerance, 4 * own);
+  EXPECT_DOUBLE_EQ(strict.evidence[2].error_tolerance, 2 * own);
+  EXPECT_FALSE(strict.evidence[1].agrees);
+  EXPECT_FALSE(strict.evidence[2].agrees);
+}
+
 TEST(AutomaticConfiguration, BadOptionsAreNamed) {
   auto message = [](const AutomaticChoiceOptions& o, std::vector<DrapeSceneSpec> samples) -> std::string {
     try {
@@ -181,6 +216,9 @@ TEST(AutomaticConfiguration, BadOptionsAreNamed) {
   o = coarseCandidates();
   o.min_mean_iou = 2;
   EXPECT_NE(message(o, {hangingSquare()}).find("min_mean_iou"), std::string::npos);
+  o = coarseCandidates();
+  o.error_tolerance_factors = {0.5};
+  EXPECT_NE(message(o, {hangingSquare()}).find("error_tolerance_factors"), std::string::npos);
   EXPECT_NE(message(coarseCandidates(), {}).find("no sample"), std::string::npos);
   EXPECT_THROW(yarnScaleQuestionFromString("unravel"), InvalidInputError);
 }

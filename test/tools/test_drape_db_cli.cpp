@@ -224,5 +224,20 @@ TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
     EXPECT_NE(s.parameters.find("automatic: model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos)
         << s.parameters;
     EXPECT_NE(s.parameters.find("automatic: evidence particle_kes hold"), std::string::npos) << s.parameters;
+    // The step tolerance search (3 times the builder's 0.1 mm by default) agreed under these loose criteria.
+    EXPECT_NE(s.parameters.find("(step error tolerance 0.0003 m)"), std::string::npos) << s.parameters;
+    EXPECT_NE(s.parameters.find("d 0.06 step tolerance 0.0003 vs 0.0001:"), std::string::npos) << s.parameters;
   }
+  // --auto-step-factors none keeps the builder's step tolerance and tries no other.
+  const std::string kept = dir_ + "/auto_kept.sqlite";
+  const ToolRun r2 = runDrapeDb({"build", "--db", kept, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
+                                 "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.05", "--auto-tolerance", "10",
+                                 "--auto-min-iou", "0", "--auto-samples", "1", "--auto-step-factors", "none", "--quiet"});
+  ASSERT_EQ(r2.exit_code, 0) << r2.out << r2.err;
+  EXPECT_NE(r2.out.find("(step error tolerance 0.0001 m)"), std::string::npos) << r2.out;
+  EXPECT_EQ(r2.out.find("step tolerance 0."), std::string::npos) << r2.out;
+  const ToolRun r3 = runDrapeDb({"build", "--db", dir_ + "/auto_bad.sqlite", "--textile", "square", "--auto",
+                                 "--auto-step-factors", "0.5"});
+  EXPECT_EQ(r3.exit_code, 2) << r3.out << r3.err;
+  EXPECT_NE(r3.err.find("error_tolerance_factors"), std::string::npos) << r3.err;
 }

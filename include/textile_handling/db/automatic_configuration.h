@@ -11,6 +11,9 @@
 //    candidate on every sampled hold point: named points (corners, grasp points) within a distance,
 //    silhouettes at the database's frame and views above a mean IoU (measureDrapeDifference(), turned about
 //    the hold axis for one-point holds).
+//  - Step tolerance (optional, error_tolerance_factors): at the chosen spacing, the loosest of the scene's
+//    step error tolerance times each factor whose drapes agree with the scene's own tolerance on every
+//    sample, by the same measure.
 // The choice and its evidence (every comparison made) are returned, printed by the tools and stored in the
 // database build's parameter text.
 #pragma once
@@ -38,6 +41,11 @@ struct AutomaticChoiceOptions {
   Real named_point_tolerance_m = 0.03;  ///< largest named-point distance to any finer candidate [m]
   Real min_mean_iou = 0.85;             ///< smallest mean silhouette IoU against any finer candidate
   YarnScaleQuestion question = YarnScaleQuestion::kNone;
+  /// Looser step error tolerances to try at the chosen spacing, as multiples (each finite and > 1) of the
+  /// samples' own `settings.error_tolerance`; the loosest whose drapes agree with the samples' own tolerance
+  /// on every sample is taken. Empty (the default): the samples' tolerance is kept. `drape_db build --auto`
+  /// tries 3 by default (docs/automatic_configuration.md).
+  std::vector<Real> error_tolerance_factors;
   /// Silhouettes as the database stores them.
   vision::ViewSet views;
   vision::CanonicalFrame frame;
@@ -52,6 +60,9 @@ struct AutomaticChoiceEvidence {
   std::string hold;                ///< HoldPoint::label() of the sample
   std::string model;
   Real spacing = 0, finer_spacing = 0;
+  /// Step error tolerances [m] of the two runs: equal in the resolution search; in the tolerance search the
+  /// looser candidate and the samples' own.
+  Real error_tolerance = 0, reference_error_tolerance = 0;
   std::string status;              ///< "compared", or why not ("diverged at ...", "not at rest", ...)
   Real named_point_distance = 0;   ///< [m]
   Real max_node_distance = 0;      ///< [m]
@@ -64,7 +75,7 @@ struct AutomaticChoice {
   ClothModelSpec model;            ///< the chosen model with the settling options of a build
   std::string model_reason;        ///< why this model
   Real spacing = 0;                ///< [m]
-  SimulationSettings settings;     ///< integrator, policy and steps as chosen
+  SimulationSettings settings;     ///< integrator, policy and steps (error tolerance) as chosen
   bool converged = false;          ///< false: no candidate agreed with every finer one; the finest that completes was taken
   std::vector<AutomaticChoiceEvidence> evidence;
   Real search_wall_s = 0;          ///< wall time of the whole search [s]
