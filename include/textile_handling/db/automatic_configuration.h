@@ -89,7 +89,9 @@ struct AutomaticChoice {
 /// model, spacing and integrator settings are ignored, the rest of each spec is kept). Every simulation
 /// runs to rest with the chosen settings; a sample that fails or does not reach rest at a spacing counts
 /// as disagreement, and a particle model that diverges switches the search to Choi-Ko. If no candidate
-/// agrees with every finer one, the finest candidate that completes on every sample is taken. Throws
+/// agrees with every finer one, the finest candidate that completes on every sample is taken. Then, with
+/// options.error_tolerance_factors, the step tolerance is searched at that spacing (evidence rows with
+/// error_tolerance != reference_error_tolerance); the samples' own is kept when no candidate agrees. Throws
 /// InvalidInputError for no samples, bad options, or no candidate that completes on every sample (the
 /// message lists each failing run).
 AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, const AutomaticChoiceOptions& options);
