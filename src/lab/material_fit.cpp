@@ -19,7 +19,7 @@ const CantileverResult* findCantilever(const LabReport& r, YarnDirection d) {
   return nullptr;
 }
 
-// The bending figure of `r` in direction `d` under `figure`; nullptr-safe callers check presence first.
+// The bending figure of `r` in direction `d` under `figure`; the caller has checked that `r` holds that test.
 Real bendingFigure(const LabReport& r, YarnDirection d, BendingFitFigure figure) {
   if (figure == BendingFitFigure::kCantilever) return findCantilever(r, d)->flexural_rigidity_Nm;
   return findBending(r, d)->B;
