@@ -206,7 +206,8 @@ TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
   const std::string path = dir_ + "/auto.sqlite";
   const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--hold", "0.15,0.15",
                                 "--views", "4", "--threads", "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.05",
-                                "--auto-tolerance", "10", "--auto-min-iou", "0", "--auto-samples", "2", "--quiet"});
+                                "--auto-tolerance", "10", "--auto-min-iou", "0", "--auto-samples", "2",
+                                "--auto-step-factors", "3", "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("automatic choice"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos) << r.out;
@@ -224,15 +225,15 @@ TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
     EXPECT_NE(s.parameters.find("automatic: model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos)
         << s.parameters;
     EXPECT_NE(s.parameters.find("automatic: evidence particle_kes hold"), std::string::npos) << s.parameters;
-    // The step tolerance search (3 times the builder's 0.1 mm by default) agreed under these loose criteria.
+    // The step tolerance search (3 times the builder's 0.1 mm) agreed under these loose criteria.
     EXPECT_NE(s.parameters.find("(step error tolerance 0.0003 m)"), std::string::npos) << s.parameters;
     EXPECT_NE(s.parameters.find("d 0.06 step tolerance 0.0003 vs 0.0001:"), std::string::npos) << s.parameters;
   }
-  // --auto-step-factors none keeps the builder's step tolerance and tries no other.
+  // Without --auto-step-factors (or with none) the builder's step tolerance is kept and no other is tried.
   const std::string kept = dir_ + "/auto_kept.sqlite";
   const ToolRun r2 = runDrapeDb({"build", "--db", kept, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
                                  "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.05", "--auto-tolerance", "10",
-                                 "--auto-min-iou", "0", "--auto-samples", "1", "--auto-step-factors", "none", "--quiet"});
+                                 "--auto-min-iou", "0", "--auto-samples", "1", "--quiet"});
   ASSERT_EQ(r2.exit_code, 0) << r2.out << r2.err;
   EXPECT_NE(r2.out.find("(step error tolerance 0.0001 m)"), std::string::npos) << r2.out;
   EXPECT_EQ(r2.out.find("step tolerance 0."), std::string::npos) << r2.out;

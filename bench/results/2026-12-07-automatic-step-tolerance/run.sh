@@ -16,8 +16,9 @@ $D/foreign_drape_bench --database "$WORK/none.sqlite" --out "$WORK/d067" --holds
 cp "$WORK/d067/foreign_drapes.sqlite" "$WORK/auto/"
 # The two builds side by side, one thread each.
 $D/drape_db build --db "$WORK/d067.sqlite" --spacing 0.006666666666666667 $COMMON > "$OUT/build_d067.log" 2>&1 &
-$D/drape_db build --db "$WORK/auto.sqlite" --auto $COMMON > "$OUT/build_auto.log" 2>&1 &
+$D/drape_db build --db "$WORK/auto.sqlite" --auto --auto-step-factors 3 $COMMON > "$OUT/build_auto.log" 2>&1 &
 wait
+python3 $OUT/aligned_distance.py "$WORK/d067.sqlite" "$WORK/auto.sqlite" > "$OUT/aligned_d067_auto.csv"
 python3 bench/results/2026-12-06-automatic-build/compare_builds.py "$WORK/d067.sqlite" "$WORK/auto.sqlite" \
   > "$OUT/compare_d067_auto.csv"
 # Both databases recognise the same renders, side by side.
@@ -30,3 +31,5 @@ for v in d067 auto; do
   cp "$WORK/$v/foreign_drapes.csv" "$OUT/recognition_${v}.csv"
   cp "$WORK/$v/foreign_corners.csv" "$OUT/recognition_${v}_corners.csv"
 done
+python3 "$OUT/paired.py" "$OUT/recognition_d067.csv" "$OUT/recognition_auto.csv" > "$OUT/paired_d067_auto.csv"
+# The probe (four hold points, 0.1 / 0.3 / 1 mm alternating in one process): probe/probe.sh.

@@ -43,8 +43,8 @@ struct AutomaticChoiceOptions {
   YarnScaleQuestion question = YarnScaleQuestion::kNone;
   /// Looser step error tolerances to try at the chosen spacing, as multiples (each finite and > 1) of the
   /// samples' own `settings.error_tolerance`; the loosest whose drapes agree with the samples' own tolerance
-  /// on every sample is taken. Empty (the default): the samples' tolerance is kept. `drape_db build --auto`
-  /// tries 3 by default (docs/automatic_configuration.md).
+  /// on every sample is taken. Empty (the default): the samples' tolerance is kept (`drape_db build --auto
+  /// --auto-step-factors 3` tries 3; docs/automatic_configuration.md).
   std::vector<Real> error_tolerance_factors;
   /// Silhouettes as the database stores them.
   vision::ViewSet views;
