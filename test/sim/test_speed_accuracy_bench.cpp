@@ -1,7 +1,10 @@
 // The speed/accuracy benchmark's pieces: the front, its margin, and one scene run against a reference.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <string>
+#include <utility>
 
 #include "textile_handling/bench/speed_accuracy.h"
 
@@ -66,22 +69,37 @@ TEST(SpeedAccuracyScene, TheCompressionSceneRunsAFiveDofModel) {
   EXPECT_NEAR(max_x, 0.18, 0.01);
 }
 
-TEST(SpeedAccuracyScene, TheSmallSheetHangsFromTheMiddleOfAShortSide) {
-  EXPECT_EQ(accuracySceneFromString("small_sheet_edge"), AccuracyScene::kSmallSheetEdge);
-  EXPECT_EQ(toString(AccuracyScene::kSmallSheetEdge), "small_sheet_edge");
+namespace {
+
+// A small-sheet scene run with the particle model at 2 cm; its name round-trips.
+AccuracyRun smallSheetAtTwoCentimetres(AccuracyScene scene, const std::string& name) {
+  EXPECT_EQ(accuracySceneFromString(name), scene);
+  EXPECT_EQ(toString(scene), name);
   AccuracyConfig c;
   c.model.spec = ClothModelSpec("particle_kes");
   c.spacing = 0.02;
-  const AccuracyRun r = runAccuracyScene(AccuracyScene::kSmallSheetEdge, c, AccuracyRunLimits{});
-  ASSERT_EQ(r.status, "rest") << r.note;
-  EXPECT_EQ(r.nodes, 45);  // 9 x 5 nodes on the 16 x 8 cm sheet at 2 cm
-  EXPECT_TRUE(r.held_at_one_point);
-  // Held at (0, 4 cm), it hangs its length down: the far corners about 16-17 cm below the 1 m hold.
+  return runAccuracyScene(scene, c, AccuracyRunLimits{});
+}
+
+// The highest and the lowest node height [m].
+std::pair<Real, Real> topAndBottom(const AccuracyRun& r) {
   Real top = -1e9, bottom = 1e9;
   for (Index i = 0; i < r.nodes; ++i) {
     top = std::max(top, r.positions[3 * i + 2]);
     bottom = std::min(bottom, r.positions[3 * i + 2]);
   }
+  return {top, bottom};
+}
+
+}  // namespace
+
+TEST(SpeedAccuracyScene, TheSmallSheetHangsFromTheMiddleOfAShortSide) {
+  const AccuracyRun r = smallSheetAtTwoCentimetres(AccuracyScene::kSmallSheetEdge, "small_sheet_edge");
+  ASSERT_EQ(r.status, "rest") << r.note;
+  EXPECT_EQ(r.nodes, 45);  // 9 x 5 nodes on the 16 x 8 cm sheet at 2 cm
+  EXPECT_TRUE(r.held_at_one_point);
+  // Held at (0, 4 cm), it hangs its length down: the far corners about 16-17 cm below the 1 m hold.
+  const auto [top, bottom] = topAndBottom(r);
   EXPECT_LT(top, 1.0 + 1e-3);
   EXPECT_GT(top - bottom, 0.13);
   EXPECT_LT(top - bottom, 0.18);
@@ -89,21 +107,12 @@ TEST(SpeedAccuracyScene, TheSmallSheetHangsFromTheMiddleOfAShortSide) {
 }
 
 TEST(SpeedAccuracyScene, TheSmallSquareHangsTenCentimetresFromACorner) {
-  EXPECT_EQ(accuracySceneFromString("small_square_corner"), AccuracyScene::kSmallSquareCorner);
-  EXPECT_EQ(toString(AccuracyScene::kSmallSquareCorner), "small_square_corner");
-  AccuracyConfig c;
-  c.model.spec = ClothModelSpec("particle_kes");
-  c.spacing = 0.02;
-  const AccuracyRun r = runAccuracyScene(AccuracyScene::kSmallSquareCorner, c, AccuracyRunLimits{});
+  const AccuracyRun r = smallSheetAtTwoCentimetres(AccuracyScene::kSmallSquareCorner, "small_square_corner");
   ASSERT_EQ(r.status, "rest") << r.note;
   EXPECT_EQ(r.nodes, 36);  // 6 x 6 nodes on the 10 cm square at 2 cm
   EXPECT_TRUE(r.held_at_one_point);
   // It hangs from its corner: every node at or below the hold, the lowest about a diagonal (14 cm) down.
-  Real top = -1e9, bottom = 1e9;
-  for (Index i = 0; i < r.nodes; ++i) {
-    top = std::max(top, r.positions[3 * i + 2]);
-    bottom = std::min(bottom, r.positions[3 * i + 2]);
-  }
+  const auto [top, bottom] = topAndBottom(r);
   EXPECT_LT(top, 1.0 + 1e-3);  // the hold is 1 m up (benchmarkTowelSpec)
   EXPECT_GT(top - bottom, 0.10);
   EXPECT_LT(top - bottom, 0.16);
