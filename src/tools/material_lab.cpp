@@ -191,6 +191,35 @@ ClothModelSpec fittedModel(const Options& o, const std::string& name) {
   return spec;
 }
 
+// fitted_<model>.yaml and fit_<model>.csv of one fit into directory d (report: the tested model's run).
+void writeFitOutputs(const std::string& d, const Options& o, const LabReport& report, const MaterialFitResult& fit) {
+  const std::string model = fit.fitted.sample.model.name;
+  writeFileAtomically(d + "/fitted_" + model + ".yaml", [&](std::ostream& f) {
+    const LabSample& fitted = fit.fitted.sample;
+    f << "# Fitted by material_lab: " << fitted.model.text() << " at d = " << fitted.spacing
+      << " m with this material reproduces "
+      << (o.fit.bending_figure == BendingFitFigure::kCantilever ? "the cantilever rigidity" : "B")
+      << ", G and the tensile figure of " << report.sample.model.text() << " (" << report.sample.material.name << ") at d = "
+      << report.sample.spacing << " m" << (fit.converged ? "" : " (NOT converged)") << "\n"
+      << (fitted.model.options.empty() ? "" : "# Use it with the same model options; they are not part of the material file.\n")
+      << materialToYaml(fit.material);
+  });
+  writeFileAtomically(d + "/fit_" + model + ".csv", [&](std::ostream& f) {
+    f.precision(8);
+    f << "figure,target,fitted,factor\n";
+    for (const auto& g : fit.figures) f << g.name << ',' << g.target << ',' << g.fitted << ',' << g.factor << '\n';
+    // Not fitted with --fit-bending cantilever: the KES B of both, which then differ.
+    if (o.fit.bending_figure == BendingFitFigure::kCantilever)
+      for (const auto& target_bending : report.bending)
+        for (const auto& fitted_bending : fit.fitted.bending)
+          if (fitted_bending.direction == target_bending.direction)
+            f << "B_" << toString(target_bending.direction) << ',' << target_bending.B << ',' << fitted_bending.B << ",\n";
+    // Not fitted: how the fitted model drapes the disc sample against the tested model.
+    if (!report.drape.empty() && !fit.fitted.drape.empty())
+      f << "DC," << report.drape.front().drape_coefficient << ',' << fit.fitted.drape.front().drape_coefficient << ",\n";
+  });
+}
+
 int run(const Options& o) {
   std::string note;
   applyThreadLimit(o.threads, &note);
@@ -295,33 +324,7 @@ int run(const Options& o) {
           << r.nodes << ',' << (r.rest_reached ? "true" : "false") << ',' << r.sim_time_s << ',' << r.steps << ','
           << r.wall_time_s << '\n';
       });
-    for (std::size_t k = 0; k < fits.size(); ++k) {
-      const std::string model = fits[k].fitted.sample.model.name;
-      writeFileAtomically(d + "/fitted_" + model + ".yaml", [&](std::ostream& f) {
-        const LabSample& fitted = fits[k].fitted.sample;
-        f << "# Fitted by material_lab: " << fitted.model.text() << " at d = " << fitted.spacing
-          << " m with this material reproduces "
-          << (o.fit.bending_figure == BendingFitFigure::kCantilever ? "the cantilever rigidity" : "B")
-          << ", G and the tensile figure of " << sample.model.text() << " (" << sample.material.name << ") at d = "
-          << sample.spacing << " m" << (fits[k].converged ? "" : " (NOT converged)") << "\n"
-          << (fitted.model.options.empty() ? "" : "# Use it with the same model options; they are not part of the material file.\n")
-          << materialToYaml(fits[k].material);
-      });
-      writeFileAtomically(d + "/fit_" + model + ".csv", [&](std::ostream& f) {
-        f.precision(8);
-        f << "figure,target,fitted,factor\n";
-        for (const auto& g : fits[k].figures) f << g.name << ',' << g.target << ',' << g.fitted << ',' << g.factor << '\n';
-        // Not fitted with --fit-bending cantilever: the KES B of both, which then differ.
-        if (o.fit.bending_figure == BendingFitFigure::kCantilever)
-          for (const auto& target_bending : report.bending)
-            for (const auto& fitted_bending : fits[k].fitted.bending)
-              if (fitted_bending.direction == target_bending.direction)
-                f << "B_" << toString(target_bending.direction) << ',' << target_bending.B << ',' << fitted_bending.B << ",\n";
-        // Not fitted: how the fitted model drapes the disc sample against the tested model.
-        if (!report.drape.empty() && !fits[k].fitted.drape.empty())
-          f << "DC," << report.drape.front().drape_coefficient << ',' << fits[k].fitted.drape.front().drape_coefficient << ",\n";
-      });
-    }
+    for (const MaterialFitResult& fit : fits) writeFitOutputs(d, o, report, fit);
     const std::string title = sample.model.name + ", " + sample.material.name;
     if (!b.empty()) chart(d + "/bending.png", b, 1, "curvature [1/cm]", "moment [gf cm/cm]", "KES-FB2 bending: " + title);
     if (!s.empty()) chart(d + "/shear.png", s, 180 / kPi, "shear angle [deg]", "force [gf/cm]", "KES-FB1 shear: " + title);

@@ -15,6 +15,12 @@ CK="--model choi_ko --model-option buckling_onset_curvature_per_m=5"
 $LAB --model yarn_woven --model-option weave=plain --spacing 0.001 --tests bending,shear,tensile,cantilever \
   --fit choi_ko --fit-model-option choi_ko:buckling_onset_curvature_per_m=5 --fit-bending cantilever --fit-spacing 0.004 \
   --threads 1 --out $FIT > $FIT.log 2>&1
+# The same fit for the twill and the satin.
+for w in twill_2_2 satin_5; do
+  $LAB --model yarn_woven --model-option weave=$w --spacing 0.001 --tests bending,shear,tensile,cantilever \
+    --fit choi_ko --fit-model-option choi_ko:buckling_onset_curvature_per_m=5 --fit-bending cantilever --fit-spacing 0.004 \
+    --threads 1 --out $OUT/yarn_woven_${w}_1mm_fit_choi_ko_4mm > $OUT/yarn_woven_${w}_1mm_fit_choi_ko_4mm.log 2>&1
+done
 # Cantilever readings (cantilever_readings/): the yarn model at 2 and 1 mm; the KES-fitted Choi-Ko at 2 and 4 mm
 # (and 2 mm with the default onset, and with Y x 53); the cantilever-fitted Choi-Ko at 4 mm with variants.
 R=$OUT/cantilever_readings
