@@ -74,9 +74,10 @@ TextileOutline squareCloth(const std::string& name, Real side) {
   return t;
 }
 
-// The 16 x 8 cm sheet of small_sheet_edge: the square's points plus the middle of its left short side.
+// The 16 x 8 cm sheet of small_sheet_edge: its corners, the middle of its left short side and its centre.
 TextileOutline smallSheet() {
-  TextileOutline t = squareCloth("small_sheet", 0.16);
+  TextileOutline t;
+  t.name = "small_sheet";
   t.outline = {Vec2(0, 0), Vec2(0.16, 0), Vec2(0.16, 0.08), Vec2(0, 0.08)};
   t.named_points = {{"corner_ll", "corner", Vec2(0, 0)},
                     {"corner_lr", "corner", Vec2(0.16, 0)},

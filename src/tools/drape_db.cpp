@@ -171,11 +171,17 @@ int threadCount(const std::string& text, const std::string& what) {
   return n;
 }
 
-std::vector<double> numbers(const std::string& text, std::size_t n, const std::string& what) {
+// Comma-separated numbers, each checked by number().
+std::vector<double> numberList(const std::string& text, const std::string& what) {
   std::vector<double> out;
   std::stringstream ss(text);
   std::string part;
   while (std::getline(ss, part, ',')) out.push_back(number(part, what));
+  return out;
+}
+
+std::vector<double> numbers(const std::string& text, std::size_t n, const std::string& what) {
+  const std::vector<double> out = numberList(text, what);
   if (out.size() != n) throw UsageError(what + ": expected " + std::to_string(n) + " comma-separated numbers");
   return out;
 }
@@ -278,21 +284,13 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   AutomaticChoiceOptions o;
   o.views = c.views;
   o.frame = c.frame;
-  if (a.has("--auto-spacings")) {
-    o.spacings.clear();
-    std::stringstream list(a.get("--auto-spacings"));
-    for (std::string item; std::getline(list, item, ',');) o.spacings.push_back(number(item, "--auto-spacings"));
-  }
+  if (a.has("--auto-spacings")) o.spacings = numberList(a.get("--auto-spacings"), "--auto-spacings");
   if (a.has("--auto-tolerance")) o.named_point_tolerance_m = number(a.get("--auto-tolerance"), "--auto-tolerance");
   if (a.has("--auto-min-iou")) o.min_mean_iou = number(a.get("--auto-min-iou"), "--auto-min-iou");
   // Off unless asked: with 3 times the builder's 0.1 mm the towel build saved a quarter of its simulation time
   // but a third of its rest shapes fell into other equilibria (docs/automatic_configuration.md).
   const std::string factors = a.get("--auto-step-factors", "none");
-  if (factors != "none") {
-    std::stringstream list(factors);
-    for (std::string item; std::getline(list, item, ',');)
-      o.error_tolerance_factors.push_back(number(item, "--auto-step-factors"));
-  }
+  if (factors != "none") o.error_tolerance_factors = numberList(factors, "--auto-step-factors");
   const Real samples = number(a.get("--auto-samples", "3"), "--auto-samples");
   if (!(samples >= 1 && samples <= 20 && samples == std::floor(samples)))
     throw UsageError("--auto-samples must be a whole number in [1, 20]");

@@ -59,7 +59,7 @@ struct Options {
   KesShearProtocol shear;
   KesBendingProtocol bending;
   std::vector<std::string> fit_models;
-  std::map<std::string, std::vector<std::pair<std::string, std::string>>> fit_model_options;  // model -> key, value
+  std::map<std::string, ClothModelSpec> fit_model_options;  // --fit-model-option, by model name
   MaterialFitOptions fit;
   double fit_spacing = 0;  // 0 = the sample's
   std::vector<YarnDirection> directions = {YarnDirection::kWarp, YarnDirection::kWeft};
@@ -132,7 +132,9 @@ std::string parseArguments(int argc, char** argv, Options& o) {
       const auto colon = value.find(':'), eq = value.find('=');
       if (colon == std::string::npos || colon == 0 || eq == std::string::npos || eq < colon + 2)
         return "--fit-model-option must be MODEL:KEY=VALUE, got '" + value + "'";
-      o.fit_model_options[value.substr(0, colon)].emplace_back(value.substr(colon + 1, eq - colon - 1), value.substr(eq + 1));
+      const std::string model = value.substr(0, colon);
+      o.fit_model_options.emplace(model, ClothModelSpec(model)).first->second.set(value.substr(colon + 1, eq - colon - 1),
+                                                                                  value.substr(eq + 1));
     } else if (a == "--fit-bending") {
       if (value == "kes") o.fit.bending_figure = BendingFitFigure::kKesB;
       else if (value == "cantilever") o.fit.bending_figure = BendingFitFigure::kCantilever;
@@ -184,11 +186,8 @@ void chart(const std::string& path, const std::vector<std::pair<std::string, con
 
 // A model of --fit with its --fit-model-option settings.
 ClothModelSpec fittedModel(const Options& o, const std::string& name) {
-  ClothModelSpec spec(name);
   const auto it = o.fit_model_options.find(name);
-  if (it != o.fit_model_options.end())
-    for (const auto& kv : it->second) spec.set(kv.first, kv.second);
-  return spec;
+  return it != o.fit_model_options.end() ? it->second : ClothModelSpec(name);
 }
 
 // fitted_<model>.yaml and fit_<model>.csv of one fit into directory d (report: the tested model's run).
