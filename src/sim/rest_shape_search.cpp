@@ -5,6 +5,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/drape_simulation.h"
 #include "textile_handling/sim/grid_prolongation.h"
 #include "textile_handling/sim/sim_errors.h"
@@ -29,6 +30,10 @@ void RestShapeSettings::validate() const {
   nonNegative(settle_mean_speed, "settle_mean_speed");
   nonNegative(settle_duration, "settle_duration");
   nonNegative(settle_error_tolerance, "settle_error_tolerance");
+  if (!(prolonged_min_edge_ratio >= 0 && prolonged_min_edge_ratio <= 1))
+    throw SimError("rest shape: prolonged_min_edge_ratio must be in [0, 1] (0 = off)");
+  if (!(prolonged_max_edge_ratio >= 1 && std::isfinite(prolonged_max_edge_ratio)))
+    throw SimError("rest shape: prolonged_max_edge_ratio must be finite and >= 1");
   const StaticEquilibriumSettings& f = finish;  // the solver's own checks, named here for the caller
   if (f.max_iterations < 1 || f.max_backtracks < 0 || !(f.force_tolerance > 0) || !std::isfinite(f.force_tolerance) ||
       !(f.min_time_scale > 0) || !(f.min_time_scale <= f.initial_time_scale) || !(f.initial_time_scale <= f.max_time_scale) ||
@@ -42,7 +47,8 @@ std::string RestShapeSettings::text() const {
   o.precision(17);
   o << "rest_method: quasi_static coarse_spacing: " << coarse_spacing << " settle: " << settle_speed << " "
     << settle_mean_speed << " " << settle_duration << " " << settle_error_tolerance << " finish: " << finish.force_tolerance << " "
-    << finish.max_iterations << " " << finish.initial_time_scale;
+    << finish.max_iterations << " " << finish.initial_time_scale << " prolonged_edge_ratios: " << prolonged_min_edge_ratio << " " << prolonged_max_edge_ratio
+    << " coarse_static_finish: " << (coarse_static_finish ? 1 : 0);
   return o.str();
 }
 
@@ -118,12 +124,16 @@ bool quasiStatic(DrapeScene& scene, const RestShapeSettings& rs, RestShapeResult
         *why = "coarse dynamic phase diverged: " + run.result.divergence_reason;
         return false;
       }
-      res->coarse_finish = solveStaticEquilibrium(*coarse->model, coarse->pins, run.result.sim_time, run.state, rs.finish);
+      if (rs.coarse_static_finish)
+        res->coarse_finish = solveStaticEquilibrium(*coarse->model, coarse->pins, run.result.sim_time, run.state, rs.finish);
       // An unconverged coarse finish still is a better start than the settling state; go on.
       VecX fine = prolongPositions(coarse->grid, coarse->model->positionsOf(run.state), scene.grid);
       const Index held = scene.pins.nodes.front();
       const Vec3 shift = scene.pins.position(0, 0) - Vec3(fine.segment<3>(3 * held));
       for (Index i = 0; i < scene.grid.numActive(); ++i) fine.segment<3>(3 * i) += shift;
+      if (rs.prolonged_min_edge_ratio > 0)
+        res->relaxation = relaxEdgeLengths(scene.grid, fine, scene.pins.nodes, rs.prolonged_min_edge_ratio,
+                                           rs.prolonged_max_edge_ratio, 200);
       scene.model->setPositions(fine, x);
       res->coarse_level = true;
       coarse_done = true;

@@ -88,7 +88,7 @@ const char* kUsage =
     "usage: drape_db COMMAND [options]   (DB: an SQLite file or a postgresql://user@host:port/database URL)\n"
     "  build  --db DB --textile NAME [--spacing D=0.02] [--lattice S=0.08 | --grid NXxNY | --hold X,Y ...]\n"
     "         [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [--no-symmetry] [--retry-failed]\n"
-    "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02]\n"
+    "         [--rest-method dynamic|quasi_static] [--coarse-spacing D=0.02] [--no-coarse-finish]\n"
     "         [--views N] [--frame WxH@METRES] [--integrator semi_implicit|block_diagonal|rk4|backward_euler_newton]\n"
     "         [--policy error|thesis|fixed] [--linear-solver direct|cg] [--jacobian definite_fix|exact]\n"
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
@@ -333,7 +333,7 @@ int cmdBuild(const Args& a) {
                "--sim-threads", "--no-symmetry", "--retry-failed", "--views", "--frame", "--integrator", "--policy",
                "--linear-solver", "--jacobian", "--dt-max", "--tolerance", "--max-time", "--settle-damping",
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
-               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--members",
+               "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--no-coarse-finish", "--members",
                "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors",
                "--question", "--mpi", "--claim-lease"});
   if (a.has("--mpi") && a.has("--auto"))
@@ -448,6 +448,7 @@ int cmdBuild(const Args& a) {
     if (!(c.rest_shape.coarse_spacing >= 0 && c.rest_shape.coarse_spacing <= 1))
       throw UsageError("--coarse-spacing must be in [0, 1] m (0 = no coarse level)");
   }
+  c.rest_shape.coarse_static_finish = !a.has("--no-coarse-finish");
 
   std::vector<DrapeMemberSpec> members;
   try {
@@ -846,7 +847,7 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   try {
     if (cmd == "build")
-      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--auto", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
+      return cmdBuild(Args(argc, argv, 2, {"--no-symmetry", "--no-coarse-finish", "--auto", "--retry-failed", "--allow-no-rest", "--quiet", "--bracket", "--cg-warm-start", "--cg-cold-start",
                                              "--self-collision", "--mpi", "--progress-records"}));
     if (cmd == "list") return cmdList(Args(argc, argv, 2, {"--simulations", "--check"}));
     if (cmd == "query") return cmdQuery(Args(argc, argv, 2, {"--canonical"}));

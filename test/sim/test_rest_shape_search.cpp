@@ -3,11 +3,15 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
+#include <utility>
+#include <vector>
 
 #include "sim_test_support.h"
 #include "textile_handling/sim/cloth_model_registry.h"
 #include "textile_handling/sim/cloth_triangles.h"
 #include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/grid_prolongation.h"
 #include "textile_handling/sim/rest_shape_search.h"
 #include "textile_handling/sim/sim_errors.h"
@@ -134,6 +138,134 @@ TEST(GridProlongation, RejectsMismatchingSizes) {
   EXPECT_THROW(prolongPositions(ParticleGrid(), VecX::Zero(0), g), SimError);
 }
 
+// The flat textile, particle positions (x, y, 0) in its frame.
+VecX flatPositions(const ParticleGrid& g) {
+  VecX x(3 * g.numActive());
+  for (Index i = 0; i < g.numActive(); ++i) x.segment<3>(3 * i) = Vec3(g.activePosition(i).x(), g.activePosition(i).y(), 0);
+  return x;
+}
+
+// Shortest and longest grid edge (4-neighbour and diagonal) over its rest length.
+std::pair<Real, Real> edgeRatioRange(const ParticleGrid& g, const VecX& x) {
+  Real lo = 1e300, hi = 0;
+  for (Index c = 0; c < g.numActive(); ++c) {
+    const Index i = g.compactRows()[static_cast<std::size_t>(c)], j = g.compactCols()[static_cast<std::size_t>(c)];
+    for (const auto& st : {std::make_pair(0, 1), std::make_pair(1, 0), std::make_pair(1, 1), std::make_pair(1, -1)}) {
+      const Index n = g.activeIndex(i + st.first, j + st.second);
+      if (n < 0) continue;
+      const Real r = (x.segment<3>(3 * n) - x.segment<3>(3 * c)).norm() / (g.spacing() * std::hypot(st.first, st.second));
+      lo = std::min(lo, r);
+      hi = std::max(hi, r);
+    }
+  }
+  return {lo, hi};
+}
+
+TEST(EdgeLengthRelaxation, LeavesEdgesInsideTheBandUntouched) {
+  std::string err;
+  const ParticleGrid g = ParticleGrid::rasterize(presetTextile("towel"), 0.04, &err);
+  VecX x = flatPositions(g);
+  // A rigid turn and a 5 % stretch along x: every edge stays within [0.9, 1.1].
+  for (Index i = 0; i < g.numActive(); ++i) {
+    const Vec3 p = x.segment<3>(3 * i);
+    x.segment<3>(3 * i) = Vec3(1.05 * p.x(), 0.6 * p.y(), 0.8 * p.y()) + Vec3(0.1, 0, 1);
+  }
+  const VecX before = x;
+  const EdgeRelaxationResult r = relaxEdgeLengths(g, x, {0}, 0.9, 1.1, 50);
+  EXPECT_EQ(r.corrections, 0);
+  EXPECT_EQ(r.sweeps, 1);
+  EXPECT_EQ(x, before);
+}
+
+TEST(EdgeLengthRelaxation, BringsFoldedAndStretchedEdgesIntoTheBandWithThePinsFixed) {
+  std::string err;
+  const ParticleGrid g = ParticleGrid::rasterize(presetTextile("towel"), 0.04, &err);
+  VecX x = flatPositions(g);
+  // A folded patch (a band of columns squeezed to a fifth in x), one particle on top of its neighbour and
+  // one pulled 5 cm out of the plane.
+  for (Index i = 0; i < g.numActive(); ++i) {
+    const Real px = g.activePosition(i).x();
+    if (px > 0.2 && px < 0.32) x[3 * i] = 0.2 + 0.2 * (px - 0.2);
+    else if (px >= 0.32) x[3 * i] -= 0.8 * 0.12;
+  }
+  const Index pin = g.nearestActive(Vec2(0.24, 0.2)), collapsed = g.nearestActive(Vec2(0.52, 0.4));
+  x.segment<3>(3 * collapsed) = x.segment<3>(3 * g.neighbour(collapsed, ParticleGrid::kLeft));
+  const Index lifted = g.nearestActive(Vec2(0.08, 0.08));
+  x[3 * lifted + 2] += 0.05;
+  const Vec3 pinned = x.segment<3>(3 * pin);
+  ASSERT_LT(edgeRatioRange(g, x).first, 0.01);
+  ASSERT_GT(edgeRatioRange(g, x).second, 1.2);
+  const EdgeRelaxationResult r = relaxEdgeLengths(g, x, {pin}, 0.9, 1.1, 500);
+  EXPECT_GT(r.corrections, 0);
+  EXPECT_LT(r.sweeps, 500);  // converged: a last sweep without corrections
+  EXPECT_LT(r.min_ratio_before, 0.01);
+  const std::pair<Real, Real> range = edgeRatioRange(g, x);
+  EXPECT_GE(range.first, 0.9 * (1 - 1e-6));
+  EXPECT_LE(range.second, 1.1 * (1 + 1e-6));
+  EXPECT_NEAR(r.min_ratio_after, range.first, 1e-12);
+  EXPECT_NEAR(r.max_ratio_after, range.second, 1e-12);
+  EXPECT_EQ(Vec3(x.segment<3>(3 * pin)), pinned);
+  EXPECT_TRUE(x.allFinite());
+}
+
+TEST(EdgeLengthRelaxation, RejectsBadArgumentsNamingThem) {
+  std::string err;
+  const ParticleGrid g = ParticleGrid::rasterize(presetTextile("towel"), 0.08, &err);
+  VecX x = flatPositions(g);
+  auto message = [&](VecX y, std::vector<Index> fixed, Real lo, Real hi, int sweeps) -> std::string {
+    try {
+      relaxEdgeLengths(g, y, fixed, lo, hi, sweeps);
+    } catch (const SimError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_NE(message(VecX::Zero(5), {}, 0.9, 1.1, 10).find("positions"), std::string::npos);
+  EXPECT_NE(message(x, {}, 0, 1.1, 10).find("min_ratio"), std::string::npos);
+  EXPECT_NE(message(x, {}, 0.9, 0.95, 10).find("max_ratio"), std::string::npos);
+  EXPECT_NE(message(x, {}, 0.9, 1.1, 0).find("max_sweeps"), std::string::npos);
+  EXPECT_NE(message(x, {g.numActive()}, 0.9, 1.1, 10).find("fixed index"), std::string::npos);
+  VecX bad = x;
+  bad[1] = std::numeric_limits<Real>::quiet_NaN();
+  EXPECT_NE(message(bad, {}, 0.9, 1.1, 10).find("finite"), std::string::npos);
+}
+
+// A 30 x 20 cm sheet held at (0.128, 0) m, settled on a 1 cm grid and prolonged onto the 2/3 cm grid:
+// the prolonged shape squeezes edges next to the hold to 0.3 of their rest length, and without the
+// edge-length band the fine run fails at its first step and the search falls back to the dynamic run.
+TEST(RestShapeSearch, TheEdgeLengthBandLetsAFoldedProlongationSettleOnTheFineGrid) {
+  DrapeSceneSpec spec = builderLikeSpec(0.3, 0.02 / 3);
+  spec.textile.outline = {Vec2(0, 0), Vec2(0.3, 0), Vec2(0.3, 0.2), Vec2(0, 0.2)};
+  spec.textile.named_points = {NamedPoint{"corner", "corner", Vec2(0, 0.2)}};
+  spec.hold = {HoldPoint{"", Vec2(0.128, 0)}};
+  RestShapeSettings fast;
+  fast.method = RestShapeMethod::kQuasiStatic;
+  fast.coarse_spacing = 0.01;
+  DrapeScene with_band = buildDrapeScene(spec);
+  const RestShapeResult r = findRestShape(with_band, fast);
+  ASSERT_TRUE(r.rest_reached) << r.failure;
+  EXPECT_EQ(r.method_used, "quasi_static");
+  EXPECT_TRUE(r.coarse_level);
+  EXPECT_LT(r.relaxation.min_ratio_before, 0.5);
+  EXPECT_GE(r.relaxation.min_ratio_after, 0.9 * (1 - 1e-6));
+  EXPECT_LE(r.relaxation.max_ratio_after, 1.1 * (1 + 1e-6));
+  EXPECT_GT(r.finish_run.steps, 0);
+  EXPECT_GT(r.coarse_finish.iterations, 0);
+  // Without the coarse Newton finish the prolonged settling state is settled on the fine grid directly.
+  fast.coarse_static_finish = false;
+  DrapeScene no_finish = buildDrapeScene(spec);
+  const RestShapeResult n = findRestShape(no_finish, fast);
+  ASSERT_TRUE(n.rest_reached) << n.failure;
+  EXPECT_EQ(n.method_used, "quasi_static");
+  EXPECT_EQ(n.coarse_finish.iterations, 0);
+  EXPECT_GT(n.finish_run.steps, 0);
+  fast.coarse_static_finish = true;
+  fast.prolonged_min_edge_ratio = 0;  // off
+  DrapeScene without = buildDrapeScene(spec);
+  const RestShapeResult f = findRestShape(without, fast);
+  EXPECT_EQ(f.method_used.rfind("dynamic (quasi-static finish failed: fine dynamic finish diverged", 0), 0u) << f.method_used;
+}
+
 TEST(RestShapeSearch, QuasiStaticWithACoarseLevelMatchesTheDynamicRestShape) {
   const DrapeSceneSpec spec = builderLikeSpec(0.3, 0.01);
   const VecX reference = dynamicRest(spec);
@@ -200,6 +332,14 @@ TEST(RestShapeSearch, MethodNamesAndSettingsText) {
   EXPECT_EQ(r.text(), "");
   r.method = RestShapeMethod::kQuasiStatic;
   EXPECT_EQ(r.text().rfind("rest_method: quasi_static coarse_spacing: 0.02", 0), 0u) << r.text();
+  EXPECT_NE(r.text().find(" prolonged_edge_ratios: 0.9"), std::string::npos) << r.text();
+  EXPECT_NE(r.text().find(" coarse_static_finish: 1"), std::string::npos) << r.text();
+  r.prolonged_max_edge_ratio = 0.99;
+  EXPECT_THROW(r.validate(), SimError);
+  r.prolonged_max_edge_ratio = 1.1;
+  r.prolonged_min_edge_ratio = 1.5;
+  EXPECT_THROW(r.validate(), SimError);
+  r.prolonged_min_edge_ratio = 0.9;
   r.coarse_spacing = -1;
   EXPECT_THROW(r.validate(), SimError);
 }

@@ -190,6 +190,28 @@ TEST_F(DrapeDbCli, AutoRefusesTheSettingsItChoosesAndItsOptionsNeedIt) {
   EXPECT_FALSE(std::filesystem::exists(never));
 }
 
+TEST_F(DrapeDbCli, ACoarseToFineBuildStoresItsRestShapeSettings) {
+  const std::string path = dir_ + "/coarse_to_fine.sqlite";
+  const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--spacing", "0.03",
+                                "--views", "4", "--threads", "1", "--no-symmetry", "--rest-method", "quasi_static", "--coarse-spacing",
+                                "0.0625", "--no-coarse-finish", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  db::DatabaseOpenOptions o;
+  o.read_only = true;
+  o.create = false;
+  db::HangingDrapeDatabase database(path, o);
+  const auto t = database.findTextile("square");
+  ASSERT_TRUE(t);
+  const auto sims = database.simulations(t->id);
+  ASSERT_EQ(sims.size(), 1u);
+  EXPECT_EQ(sims[0].status, db::SimulationStatus::kDone);
+  EXPECT_NE(sims[0].parameters.find("rest_method: quasi_static coarse_spacing: 0.0625 "), std::string::npos) << sims[0].parameters;
+  EXPECT_NE(sims[0].parameters.find("prolonged_edge_ratios: 0.9"), std::string::npos) << sims[0].parameters;
+  EXPECT_NE(sims[0].parameters.find("coarse_static_finish: 0"), std::string::npos) << sims[0].parameters;
+  expectRefused(runDrapeDb({"build", "--db", dir_ + "/never.sqlite", "--textile", "square", "--coarse-spacing", "2"}),
+                "--coarse-spacing");
+}
+
 TEST_F(DrapeDbCli, AnAutoBuildOfASymmetricTextileSearchesMirrorSymmetricGrids) {
   const std::string path = dir_ + "/auto_symmetric.sqlite";
   const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",

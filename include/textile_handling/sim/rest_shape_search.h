@@ -6,7 +6,8 @@
 //         grid of the same textile when coarse_spacing allows (the swing and fall cost little there);
 //      2. on the coarse grid, the static equilibrium near that state (solveStaticEquilibrium);
 //      3. prolongation to the scene's grid (prolongPositions), shifted so the held particle sits on
-//         its pin, and the static equilibrium there.
+//         its pin, its edge lengths brought into a band around their rest lengths (relaxEdgeLengths),
+//         and the static equilibrium there.
 //    If a stage fails (the finish does not converge, the coarse run diverges), the scene falls back to
 //    the dynamic method, and the result says so.
 // The quasi-static method needs static pins and no post-step pass (self-collision, obstacles): Newton
@@ -15,6 +16,7 @@
 
 #include <string>
 
+#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/drape_scene.h"
 #include "textile_handling/sim/static_equilibrium.h"
 
@@ -46,6 +48,16 @@ struct RestShapeSettings {
   Real settle_error_tolerance = 0;
   StaticEquilibriumSettings finish;
   FineFinish fine_finish = FineFinish::kDynamic;
+  /// Whether stage 2 (the coarse static equilibrium) runs. With the dynamic fine finish the fine run settles
+  /// the prolonged shape anyway; on the towel's 1 cm level the Newton finish stops at its 60 iterations
+  /// unconverged and costs about a third of the whole method (docs/simulation.md).
+  bool coarse_static_finish = true;
+  /// After prolongation, grid edges outside [min, max] times their rest length are brought into that band
+  /// (relaxEdgeLengths, the pins fixed, up to 200 sweeps): a folded coarse cell squeezes fine edges, and
+  /// the particle model's forces there stopped the fine run at its first step. min in (0, 1] (0 = off),
+  /// max >= 1.
+  Real prolonged_min_edge_ratio = 0.9;
+  Real prolonged_max_edge_ratio = 1.1;
 
   /// Canonical text of the settings (empty for kDynamic), for database parameter texts.
   std::string text() const;
@@ -65,6 +77,7 @@ struct RestShapeResult {
   RunResult dynamic;               ///< the dynamic phase (or the whole dynamic run)
   StaticEquilibriumResult coarse_finish, finish;
   RunResult finish_run;            ///< the fine dynamic finish (FineFinish::kDynamic)
+  EdgeRelaxationResult relaxation; ///< the prolonged shape's edge-length band (coarse level only)
   double wall_seconds = 0;         ///< everything, scene building of the coarse level included
   long steps = 0;                  ///< accepted dynamic steps (coarse and fine)
   long rejected_steps = 0;
