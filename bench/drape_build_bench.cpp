@@ -3,17 +3,18 @@
 // the thesis's towel database (6 x 6 hold points in one quadrant).
 //
 // The reference arm is the builder's dynamic run with the linear systems solved tightly (CG relative
-// tolerance 1e-6, cold start): error-controlled steps of 0.1 mm, dt_max 40 ms, no self-collision. The
+// tolerance 1e-6, cold start; --reference-cg-tolerance T and --reference-cg-warm-start change them, e.g. to
+// the demo's and replay tests' 0.001 warm): error-controlled steps of 0.1 mm, dt_max 40 ms, no self-collision. The
 // fast arm starts from DrapeBuildConfig::defaultSimulationSettings() (the same tight solves) and applies
 // the --fast* options, e.g. --fast-cg-tolerance 0.001 --fast-cg-warm-start.
 //
 //   drape_build_bench [--out DIR] [--spacings D1,D2,...] [--grid NXxNY] [--holds K] [--mode holds|build|both]
 //                     [--workers N] [--repeats R] [--corner-reference] [--settle SPEED,MEAN,DURATION]
-//                     [--settle-tolerance M] [--coarse-spacing D] [--finish-iterations N] [--polish N]
+//                     [--settle-tolerance M] [--coarse-spacing D] [--no-coarse-finish] [--finish-iterations N] [--polish N]
 //                     [--fast dynamic|quasi_static] [--fast-cg-tolerance T] [--fast-cg-warm-start]
 //                     [--fast-cg-cold-start]
 //                     [--fast-error-tolerance M] [--fast-dt-max S] [--shard K/S]
-//                     [--fast-build-only]
+//                     [--fast-build-only] [--reference-cg-tolerance T] [--reference-cg-warm-start]
 //   drape_build_bench --chart-from DIR/build_holds.csv --out DIR   (redraws the chart of stored rows)
 //
 // holds: every hold point of the grid (or its first K) simulated one after the other on one thread,
@@ -77,6 +78,9 @@ struct Options {
   bool fast_cg_cold_start = false;  ///< --fast-cg-cold-start
   Real fast_error_tolerance = 0;  ///< --fast-error-tolerance M
   Real fast_dt_max = 0;           ///< --fast-dt-max S
+  // The reference arm's CG solves (default tight: 1e-6, cold start).
+  Real reference_cg_tolerance = 1e-6;  ///< --reference-cg-tolerance T
+  bool reference_cg_warm_start = false;  ///< --reference-cg-warm-start
   std::string fast_label;  ///< fastLabel()
 };
 
@@ -136,6 +140,7 @@ Options parseArgs(int argc, char** argv) {
       o.fast.settle_duration = v[2];
     } else if (a == "--settle-tolerance") o.fast.settle_error_tolerance = std::stod(next());
     else if (a == "--coarse-spacing") o.fast.coarse_spacing = std::stod(next());
+    else if (a == "--no-coarse-finish") o.fast.coarse_static_finish = false;
     else if (a == "--chart-from") o.chart_from = next();
     else if (a == "--polish") o.polish = std::stoi(next());
     else if (a == "--finish-iterations") o.fast.finish.max_iterations = std::stoi(next());
@@ -146,6 +151,8 @@ Options parseArgs(int argc, char** argv) {
     else if (a == "--fast-build-only") o.fast_build_only = true;
     else if (a == "--fast-error-tolerance") o.fast_error_tolerance = std::stod(next());
     else if (a == "--fast-dt-max") o.fast_dt_max = std::stod(next());
+    else if (a == "--reference-cg-tolerance") o.reference_cg_tolerance = std::stod(next());
+    else if (a == "--reference-cg-warm-start") o.reference_cg_warm_start = true;
     else throw std::invalid_argument("unknown option " + a);
   }
   o.fast.method = restShapeMethodFromString(fast_method);
@@ -154,20 +161,23 @@ Options parseArgs(int argc, char** argv) {
   for (Real d : o.spacings)
     if (!(d >= 0.004 && d <= 0.1)) throw std::invalid_argument("--spacings: each in [0.004, 0.1] m");
   if (o.nx < 1 || o.ny < 1 || o.holds < 0 || o.workers < 0 || o.repeats < 1) throw std::invalid_argument("bad count");
+  if (!(o.reference_cg_tolerance > 0 && o.reference_cg_tolerance < 1))
+    throw std::invalid_argument("--reference-cg-tolerance: in (0, 1)");
   return o;
 }
 
-// The reference arm's simulation settings: the builder's, with tight cold-started CG solves.
-SimulationSettings referenceSettings() {
+// The reference arm's simulation settings: the builder's, with tight cold-started CG solves unless
+// --reference-cg-* say otherwise.
+SimulationSettings referenceSettings(const Options& o) {
   SimulationSettings s = db::DrapeBuildConfig::defaultSimulationSettings();
-  s.solver.relative_tolerance = 1e-6;
-  s.solver.warm_start = false;
+  s.solver.relative_tolerance = o.reference_cg_tolerance;
+  s.solver.warm_start = o.reference_cg_warm_start;
   return s;
 }
 
 db::DrapeBuildConfig baseConfig(const Options& o, Real spacing) {
   db::DrapeBuildConfig c;
-  c.settings = referenceSettings();
+  c.settings = referenceSettings(o);
   c.textile = presetTextile("towel");
   c.spacing = spacing;
   c.hold_points = db::fundamentalDomainGrid(c.textile, db::detectSymmetry(c.textile), o.nx, o.ny);
@@ -299,9 +309,9 @@ void holdsMode(const Options& o, std::vector<ChartPoint>* chart) {
   }
 }
 
-double cornerReference(Real d) {
+double cornerReference(const Options& o, Real d) {
   db::DrapeBuildConfig c;
-  c.settings = referenceSettings();
+  c.settings = referenceSettings(o);
   c.spacing = d;
   c.textile = presetTextile("towel");
   DrapeScene s = buildDrapeScene(db::DrapeDatabaseBuilder::sceneSpec(c, Vec2(0.0, 0.46)));
@@ -391,7 +401,7 @@ void buildMode(const Options& o) {
           rep_out = builder.build();
         }
         for (const char* ext : {"", "-wal", "-shm"}) std::filesystem::remove(file + ext);
-        const double corner = o.corner_reference ? cornerReference(d) : 0.0;
+        const double corner = o.corner_reference ? cornerReference(o, d) : 0.0;
         csv << num(d) << "," << rep << ",\"" << (fast ? o.fast_label : std::string("reference")) << "\"," << rep_out.planned << "," << rep_out.simulated_now << ","
             << rep_out.failed_now << "," << pass.workers << "," << pass.threads_per_simulation << ","
             << num(rep_out.wall_seconds) << "," << num(rep_out.simulation_seconds) << "," << num(corner) << "\n"
