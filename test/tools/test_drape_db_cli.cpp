@@ -59,6 +59,16 @@ class DrapeDbCli : public ::testing::Test {
     args.insert(args.end(), extra.begin(), extra.end());
     return runDrapeDb(args);
   }
+  /// The simulation rows of the 'square' textile in the database at `path`, opened read-only.
+  static std::vector<db::SimulationRecord> squareRows(const std::string& path) {
+    db::DatabaseOpenOptions o;
+    o.read_only = true;
+    o.create = false;
+    db::HangingDrapeDatabase database(path, o);
+    const auto t = database.findTextile("square");
+    EXPECT_TRUE(t) << path;
+    return t ? database.simulations(t->id) : std::vector<db::SimulationRecord>{};
+  }
   static void expectRefused(const ToolRun& r, const std::string& names) {
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_NE(r.err.find(names), std::string::npos) << "the message does not name " << names << ": " << r.err;
@@ -196,13 +206,7 @@ TEST_F(DrapeDbCli, ACoarseToFineBuildStoresItsRestShapeSettings) {
                                 "--views", "4", "--threads", "1", "--no-symmetry", "--rest-method", "quasi_static", "--coarse-spacing",
                                 "0.0625", "--no-coarse-finish", "--quiet"});
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
-  db::DatabaseOpenOptions o;
-  o.read_only = true;
-  o.create = false;
-  db::HangingDrapeDatabase database(path, o);
-  const auto t = database.findTextile("square");
-  ASSERT_TRUE(t);
-  const auto sims = database.simulations(t->id);
+  const auto sims = squareRows(path);
   ASSERT_EQ(sims.size(), 1u);
   EXPECT_EQ(sims[0].status, db::SimulationStatus::kDone);
   EXPECT_NE(sims[0].parameters.find("rest_method: quasi_static coarse_spacing: 0.0625 "), std::string::npos) << sims[0].parameters;
@@ -233,13 +237,7 @@ TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("automatic choice"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("model particle_kes (hanging scene), spacing 0.06 m"), std::string::npos) << r.out;
-  db::DatabaseOpenOptions o;
-  o.read_only = true;
-  o.create = false;
-  db::HangingDrapeDatabase database(path, o);
-  const auto t = database.findTextile("square");
-  ASSERT_TRUE(t);
-  const auto sims = database.simulations(t->id);
+  const auto sims = squareRows(path);
   ASSERT_EQ(sims.size(), 2u);
   for (const auto& s : sims) {
     EXPECT_EQ(s.status, db::SimulationStatus::kDone);
