@@ -5,8 +5,8 @@
 #include <cmath>
 #include <sstream>
 
-#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/drape_simulation.h"
+#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/grid_prolongation.h"
 #include "textile_handling/sim/sim_errors.h"
 #include "textile_handling/sim/timing.h"
@@ -47,8 +47,8 @@ std::string RestShapeSettings::text() const {
   o.precision(17);
   o << "rest_method: quasi_static coarse_spacing: " << coarse_spacing << " settle: " << settle_speed << " "
     << settle_mean_speed << " " << settle_duration << " " << settle_error_tolerance << " finish: " << finish.force_tolerance << " "
-    << finish.max_iterations << " " << finish.initial_time_scale << " prolonged_edge_ratios: " << prolonged_min_edge_ratio << " " << prolonged_max_edge_ratio
-    << " coarse_static_finish: " << (coarse_static_finish ? 1 : 0);
+    << finish.max_iterations << " " << finish.initial_time_scale << " prolonged_edge_ratios: " << prolonged_min_edge_ratio
+    << " " << prolonged_max_edge_ratio << " coarse_static_finish: " << (coarse_static_finish ? 1 : 0);
   return o.str();
 }
 

@@ -16,8 +16,8 @@
 
 #include <string>
 
-#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/drape_scene.h"
+#include "textile_handling/sim/edge_length_relaxation.h"
 #include "textile_handling/sim/static_equilibrium.h"
 
 namespace textile_handling {
