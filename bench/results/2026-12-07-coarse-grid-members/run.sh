@@ -57,3 +57,6 @@ python3 $OUT/summarise.py $S1REF d1=$OUT/recognition_seed1_d1.csv d1_soft=$OUT/r
   d05=$OUT/recognition_seed1_d05.csv > $OUT/summary_seed1.csv
 python3 $OUT/summarise.py $OUT/recognition_seed41_d067.csv d1=$OUT/recognition_seed41_d1.csv \
   d1_soft=$OUT/recognition_seed41_d1_soft.csv d05=$OUT/recognition_seed41_d05.csv > $OUT/summary_seed41.csv
+# Interleaved cost on 12 hold points, two shards side by side, after everything above.
+$OUT/interleaved/probe.sh 0 & $OUT/interleaved/probe.sh 1 & wait
+python3 $OUT/interleaved/summarise_times.py $OUT/interleaved/times_*.csv > $OUT/interleaved/summary.txt
