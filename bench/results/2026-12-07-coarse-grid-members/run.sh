@@ -41,9 +41,12 @@ python3 bench/results/2026-12-06-automatic-build/compare_builds.py /tmp/ab/d067.
 recognise() {  # SET DATABASE: the set's renders recognised against $WORK/DATABASE.sqlite
   local set=$1 v=$2 dir="$WORK/$1_$2"
   mkdir -p "$dir"
-  if [ "$set" = seed1 ]; then cp "$SEED1" "$dir/"; else cp "$WORK/s41/foreign_drapes.sqlite" "$dir/"; fi
   local only=()
-  [ "$set" = seed41 ] && only=(--seed 41 --variants $S41VARIANTS)
+  case $set in
+    seed1) cp "$SEED1" "$dir/" ;;
+    seed41) cp "$WORK/s41/foreign_drapes.sqlite" "$dir/"; only=(--seed 41 --variants $S41VARIANTS) ;;
+    seed51) cp "$WORK/s51/foreign_drapes.sqlite" "$dir/"; only=(--seed 51 --variants $S41VARIANTS) ;;
+  esac
   $D/foreign_drape_bench --database "$WORK/$v.sqlite" --out "$dir" --holds 4 --views 3 "${only[@]}" --workers 1 \
     --max-time 20 > "$OUT/recognition_${set}_$v.log" 2>&1
   cp "$dir/foreign_drapes.csv" "$OUT/recognition_${set}_$v.csv"
@@ -60,3 +63,16 @@ python3 $OUT/summarise.py $OUT/recognition_seed41_d067.csv d1=$OUT/recognition_s
 # Interleaved cost on 12 hold points, two shards side by side, after everything above.
 $OUT/interleaved/probe.sh 0 & $OUT/interleaved/probe.sh 1 & wait
 python3 $OUT/interleaved/summarise_times.py $OUT/interleaved/times_*.csv > $OUT/interleaved/summary.txt
+# A second fresh set (seed 51), made and recognised after everything above.
+mkdir -p "$WORK/s51"
+$D/foreign_drape_bench --database "$WORK/none.sqlite" --out "$WORK/s51" --holds 4 --views 3 --seed 51 --workers 2 \
+  --variants $S41VARIANTS --max-time 20 > "$OUT/heldout_s51.log" 2>&1
+recognise seed51 d067 & recognise seed51 d1_soft & wait
+recognise seed51 d05 & recognise seed51 d1 & wait
+python3 $OUT/summarise.py $OUT/recognition_seed51_d067.csv d1=$OUT/recognition_seed51_d1.csv \
+  d1_soft=$OUT/recognition_seed51_d1_soft.csv d05=$OUT/recognition_seed51_d05.csv > $OUT/summary_seed51.csv
+for v in d067 d1 d1_soft d05; do  # the fresh sets pooled
+  (cat $OUT/recognition_seed41_$v.csv; tail -n +2 $OUT/recognition_seed51_$v.csv) > "$WORK/fresh_$v.csv"
+done
+python3 $OUT/summarise.py "$WORK/fresh_d067.csv" d1="$WORK/fresh_d1.csv" d1_soft="$WORK/fresh_d1_soft.csv" \
+  d05="$WORK/fresh_d05.csv" > $OUT/summary_fresh_pooled.csv
