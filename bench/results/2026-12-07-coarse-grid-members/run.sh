@@ -9,6 +9,7 @@ D=.build/ws/devel/lib/textile_handling
 OUT=bench/results/2026-12-07-coarse-grid-members
 WORK=${WORK:-/tmp/mb2}
 SEED1=${SEED1:-/tmp/ab/d067/foreign_drapes.sqlite}
+REFERENCE_DB=${REFERENCE_DB:-/tmp/ab/d067.sqlite}  # that directory's d = 2/3 cm database
 export OMP_WAIT_POLICY=passive OMP_NUM_THREADS=1
 mkdir -p "$WORK"
 COMMON="--textile towel --grid 6x6 --cg-tolerance 0.001 --cg-warm-start --threads 1 --sim-threads 1 --quiet"
@@ -31,12 +32,12 @@ wait
 mkdir -p "$WORK/s41"
 timed d05_two_workers $D/drape_db build --db "$WORK/d05.sqlite" --spacing 0.005 \
   --textile towel --grid 6x6 --cg-tolerance 0.001 --cg-warm-start --threads 2 --sim-threads 1 --quiet &
-# The seed-41 set without the two self-collision variants (their held-out simulations are the slow ones).
-S41VARIANTS=choi_ko,stiff_light,soft_heavy,heap,thesis
+# The fresh sets (seeds 41, 51) without the two self-collision variants (their held-out simulations are the slow ones).
+FRESH_VARIANTS=choi_ko,stiff_light,soft_heavy,heap,thesis
 $D/foreign_drape_bench --database "$WORK/none.sqlite" --out "$WORK/s41" --holds 4 --views 3 --seed 41 --workers 2 \
-  --variants $S41VARIANTS --max-time 20 > "$OUT/heldout_s41.log" 2>&1 &
+  --variants $FRESH_VARIANTS --max-time 20 > "$OUT/heldout_s41.log" 2>&1 &
 wait
-python3 bench/results/2026-12-06-automatic-build/compare_builds.py /tmp/ab/d067.sqlite "$WORK/d067.sqlite" \
+python3 bench/results/2026-12-06-automatic-build/compare_builds.py "$REFERENCE_DB" "$WORK/d067.sqlite" \
   > "$OUT/compare_d067_rebuilt.csv"
 recognise() {  # SET DATABASE: the set's renders recognised against $WORK/DATABASE.sqlite
   local set=$1 v=$2 dir="$WORK/$1_$2"
@@ -44,8 +45,8 @@ recognise() {  # SET DATABASE: the set's renders recognised against $WORK/DATABA
   local only=()
   case $set in
     seed1) cp "$SEED1" "$dir/" ;;
-    seed41) cp "$WORK/s41/foreign_drapes.sqlite" "$dir/"; only=(--seed 41 --variants $S41VARIANTS) ;;
-    seed51) cp "$WORK/s51/foreign_drapes.sqlite" "$dir/"; only=(--seed 51 --variants $S41VARIANTS) ;;
+    seed41|seed51)  # the fresh sets: held-out drapes in $WORK/s41, $WORK/s51
+      cp "$WORK/s${set#seed}/foreign_drapes.sqlite" "$dir/"; only=(--seed "${set#seed}" --variants $FRESH_VARIANTS) ;;
   esac
   $D/foreign_drape_bench --database "$WORK/$v.sqlite" --out "$dir" --holds 4 --views 3 "${only[@]}" --workers 1 \
     --max-time 20 > "$OUT/recognition_${set}_$v.log" 2>&1
@@ -66,7 +67,7 @@ python3 $OUT/interleaved/summarise_times.py $OUT/interleaved/times_*.csv > $OUT/
 # A second fresh set (seed 51), made and recognised after everything above.
 mkdir -p "$WORK/s51"
 $D/foreign_drape_bench --database "$WORK/none.sqlite" --out "$WORK/s51" --holds 4 --views 3 --seed 51 --workers 2 \
-  --variants $S41VARIANTS --max-time 20 > "$OUT/heldout_s51.log" 2>&1
+  --variants $FRESH_VARIANTS --max-time 20 > "$OUT/heldout_s51.log" 2>&1
 recognise seed51 d067 & recognise seed51 d1_soft & wait
 recognise seed51 d05 & recognise seed51 d1 & wait
 python3 $OUT/summarise.py $OUT/recognition_seed51_d067.csv d1=$OUT/recognition_seed51_d1.csv \
