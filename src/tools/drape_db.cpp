@@ -4,7 +4,7 @@
 //   drape_db build  --db DB --textile NAME [--spacing D] [--lattice S | --grid NXxNY | --hold X,Y ...]
 //                   [--material FILE] [--name NAME] [--threads N] [--sim-threads M] [simulation options]
 //                   [--auto [--auto-spacings D,..] [--auto-tolerance M] [--auto-min-iou X] [--auto-samples N]
-//                           [--auto-step-factors F,..|none] [--question Q]]
+//                           [--auto-step-factors F,..|none] [--auto-members LIST|none] [--question Q]]
 //                   [--mpi] [--claim-lease S] [--progress-records]
 //   drape_db build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--progress-records]
 //   drape_db list   --db DB [--simulations] [--textile NAME] [--check]
@@ -94,7 +94,8 @@ const char* kUsage =
     "         [--dt-max S] [--tolerance M] [--max-time S] [--settle-damping Z] [--cg-tolerance R] [--cg-cold-start]\n"
     "         [--model NAME] [--model-option KEY=VALUE]... [--allow-no-rest] [--quiet]\n"
     "         [--auto [--auto-spacings D,D,..] [--auto-tolerance M=0.03] [--auto-min-iou X=0.85]\n"
-    "                 [--auto-samples N=3] [--auto-step-factors F,..|none=none] [--question none|pull_out|sliding|tearing]]\n"
+    "                 [--auto-samples N=3] [--auto-step-factors F,..|none=none] [--auto-members LIST|none=soft_light]\n"
+    "                 [--question none|pull_out|sliding|tearing]]\n"
     "         [--bracket] [--self-collision] [--memory-budget-mb M] [--members LIST|standard]\n"
     "         [--mpi] [--claim-lease S=60] [--progress-records]\n"
     "  build  --db DB --job FILE [--mpi] [--threads N] [--sim-threads M] [--claim-lease S] [--quiet] [--progress-records]\n"
@@ -280,7 +281,8 @@ int cmdBuildJob(const Args& a) {
 // --auto: model, spacing, integrator, policy and step tolerance from the search on a spread sample of the build's
 // hold points (automatic_configuration.h); the choice and its evidence are printed and go into the build's
 // parameter text.
-void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildConfig& c) {
+// With the members rule (--auto-members, soft_light unless none) the members it takes join `members`.
+void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildConfig& c, std::vector<DrapeMemberSpec>& members) {
   AutomaticChoiceOptions o;
   o.views = c.views;
   o.frame = c.frame;
@@ -316,8 +318,27 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   const std::vector<Vec2> candidates =
       c.hold_points.empty() ? fundamentalDomainLattice(c.textile, sym, c.lattice_spacing) : c.hold_points;
   std::vector<DrapeSceneSpec> scenes;
-  for (const Vec2& p : spreadSample(candidates, static_cast<int>(samples)))
-    scenes.push_back(DrapeDatabaseBuilder::sceneSpec(c, p));
+  const std::vector<Vec2> sample_points = spreadSample(candidates, static_cast<int>(samples));
+  for (const Vec2& p : sample_points) scenes.push_back(DrapeDatabaseBuilder::sceneSpec(c, p));
+  // Members the rule may add where no spacing converges (soft_light by default: of the members tried on the
+  // towel it alone kept recognition level; docs/automatic_configuration.md). Members the build makes anyway
+  // are not offered.
+  std::vector<DrapeMemberSpec> offered;
+  try {
+    const std::string list = a.get("--auto-members", "soft_light");
+    if (list != "none") offered = drapeMembersByName(list);
+  } catch (const InvalidInputError& e) {
+    throw UsageError(std::string("--auto-members: ") + e.what());
+  }
+  for (const DrapeMemberSpec& m : offered) {
+    if (m.name == "base") throw UsageError("--auto-members: the base member is always built; list extra members only");
+    bool built_anyway = false;
+    for (const DrapeMemberSpec& b : members) built_anyway |= b.name == m.name;
+    if (built_anyway) continue;
+    AutomaticChoiceOptions::MemberSamples ms{m.name, {}};
+    for (const Vec2& p : sample_points) ms.scenes.push_back(DrapeDatabaseBuilder::sceneSpec(memberBuildConfig(c, m), p));
+    o.member_samples.push_back(ms);
+  }
   if (!a.has("--quiet")) o.on_progress = [](const std::string& line) { std::cerr << "auto: " << line << "\n"; };
   const AutomaticChoice choice = chooseConfiguration(scenes, o);
   std::cout << "automatic choice (" << fixed(choice.search_wall_s, 1) << " s of search):\n" << choice.text();
@@ -325,6 +346,9 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   c.spacing = choice.spacing;
   c.settings = choice.settings;
   c.automatic_choice = choice.text();
+  for (const std::string& name : choice.members)
+    for (const DrapeMemberSpec& m : offered)
+      if (m.name == name) members.push_back(m);
 }
 
 int cmdBuild(const Args& a) {
@@ -335,7 +359,7 @@ int cmdBuild(const Args& a) {
                "--cg-tolerance", "--cg-warm-start", "--cg-cold-start", "--model", "--model-option", "--allow-no-rest", "--quiet", "--bracket",
                "--self-collision", "--memory-budget-mb", "--rest-method", "--coarse-spacing", "--no-coarse-finish", "--members",
                "--auto", "--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors",
-               "--question", "--mpi", "--claim-lease"});
+               "--auto-members", "--question", "--mpi", "--claim-lease"});
   if (a.has("--mpi") && a.has("--auto"))
     throw UsageError("--auto cannot run on a farm (--mpi): run it once without --mpi and pass its choice");
   if (a.has("--auto"))
@@ -343,7 +367,8 @@ int cmdBuild(const Args& a) {
       if (a.has(fixed_by_auto))
         throw UsageError(std::string("--auto chooses the model, spacing, integrator and policy: drop ") + fixed_by_auto);
   for (const char* auto_only :
-       {"--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors", "--question"})
+       {"--auto-spacings", "--auto-tolerance", "--auto-min-iou", "--auto-samples", "--auto-step-factors", "--auto-members",
+        "--question"})
     if (a.has(auto_only) && !a.has("--auto")) throw UsageError(std::string(auto_only) + " needs --auto");
   DrapeBuildConfig c;
   try {
@@ -457,7 +482,7 @@ int cmdBuild(const Args& a) {
     throw UsageError(std::string("--members: ") + e.what());
   }
 
-  if (a.has("--auto")) chooseAutomatically(a, sym, c);
+  if (a.has("--auto")) chooseAutomatically(a, sym, c, members);
 
   if (a.has("--claim-lease")) c.claim_lease_s = numberIn(a.get("--claim-lease"), 3, 1e6, "--claim-lease");
   if (a.has("--mpi")) return buildOnFarm(a, [&](const farm::MpiSession&) { return BuildRequest{c, members}; });

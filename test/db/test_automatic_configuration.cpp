@@ -85,6 +85,80 @@ TEST(AutomaticConfiguration, NoAgreementTakesTheFinestAndSaysSo) {
   EXPECT_NE(c.text().find("the finest that completes was taken"), std::string::npos);
 }
 
+/// The square's samples as the soft_light member makes them (bending and shear x0.5, density x0.8).
+AutomaticChoiceOptions::MemberSamples softLight(const std::vector<DrapeSceneSpec>& samples, const std::string& name = "soft_light") {
+  AutomaticChoiceOptions::MemberSamples m{name, samples};
+  for (DrapeSceneSpec& s : m.scenes) s.material = scaledMaterial(s.material, 0.5, 0.5, 0.8, s.material.name + "_varied");
+  return m;
+}
+
+TEST(AutomaticConfiguration, WithoutConvergenceACoarserGridWithMembersIsTakenWhenItCostsLess) {
+  // Named points can never agree, so nothing converges; silhouettes are compared with a loose bound, so the
+  // rule's silhouette condition holds and its work condition decides.
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.spacings = {0.06, 0.03};
+  o.named_point_tolerance_m = 1e-9;
+  o.min_mean_iou = 0.3;
+  const std::vector<DrapeSceneSpec> samples = {hangingSquare("corner_ul"), hangingSquare("centre")};
+  // Ten members offered: a 6 cm run does about a sixth of the 3 cm run's work, so some fit and not all.
+  for (const char* name : {"m1", "m2", "m3", "m4", "m5", "m6", "m7", "m8", "m9", "m10"})
+    o.member_samples.push_back(softLight(samples, name));
+  const AutomaticChoice c = chooseConfiguration(samples, o);
+  EXPECT_FALSE(c.converged);
+  ASSERT_FALSE(c.members.empty()) << c.text();
+  EXPECT_LT(c.members.size(), 10u) << c.text();
+  EXPECT_EQ(c.members.front(), "m1");  // in the order offered
+  EXPECT_DOUBLE_EQ(c.spacing, 0.06);
+  EXPECT_GT(c.work_with_members, 0);
+  EXPECT_LT(c.work_with_members, c.work_finest) << c.text();
+  EXPECT_NE(c.text().find("a coarser one with members was taken"), std::string::npos) << c.text();
+  EXPECT_NE(c.text().find("members base, m1"), std::string::npos) << c.text();
+  EXPECT_NE(c.text().find("over the finest's: stop"), std::string::npos) << c.text();
+  // Every sample compared at 6 cm against 3 cm, once each.
+  int compared = 0;
+  for (const AutomaticChoiceEvidence& e : c.evidence) compared += e.spacing == 0.06 && e.finer_spacing == 0.03;
+  EXPECT_EQ(compared, 2) << c.text();
+}
+
+TEST(AutomaticConfiguration, TheMembersRuleKeepsTheFinestWhenSilhouettesDisagreeOrItConverged) {
+  const std::vector<DrapeSceneSpec> samples = {hangingSquare()};
+  AutomaticChoiceOptions o = coarseCandidates();
+  o.spacings = {0.06, 0.03};
+  o.named_point_tolerance_m = 1e-9;
+  o.min_mean_iou = 1.0;  // no two grids draw identical silhouettes
+  o.member_samples = {softLight(samples)};
+  const AutomaticChoice strict = chooseConfiguration(samples, o);
+  EXPECT_FALSE(strict.converged);
+  EXPECT_TRUE(strict.members.empty());
+  EXPECT_DOUBLE_EQ(strict.spacing, 0.03);
+  EXPECT_NE(strict.members_reason.find("no members: d 0.06 on hold corner_ul: silhouette IoU"), std::string::npos)
+      << strict.text();
+  EXPECT_NE(strict.text().find("the finest that completes was taken"), std::string::npos) << strict.text();
+
+  // A member whose samples do not complete is not taken (its spacing cannot be rasterised).
+  o.min_mean_iou = 0.3;
+  AutomaticChoiceOptions::MemberSamples broken = softLight(samples, "broken");
+  broken.scenes[0].textile.outline.clear();
+  o.member_samples = {broken, softLight(samples)};
+  const AutomaticChoice stopped = chooseConfiguration(samples, o);
+  EXPECT_TRUE(stopped.members.empty()) << stopped.text();
+  EXPECT_DOUBLE_EQ(stopped.spacing, 0.03);
+  EXPECT_NE(stopped.members_reason.find("broken error:"), std::string::npos) << stopped.text();
+
+  // Converged: the rule is not asked.
+  o.named_point_tolerance_m = 10;
+  o.min_mean_iou = 0;
+  o.member_samples = {softLight(samples)};
+  const AutomaticChoice converged = chooseConfiguration(samples, o);
+  EXPECT_TRUE(converged.converged);
+  EXPECT_TRUE(converged.members.empty());
+  EXPECT_TRUE(converged.members_reason.empty());
+
+  // Member samples that do not match the samples are refused.
+  o.member_samples = {softLight({hangingSquare(), hangingSquare("centre")})};
+  EXPECT_THROW(chooseConfiguration(samples, o), InvalidInputError);
+}
+
 TEST(AutomaticConfiguration, AFailingFinestCandidateIsNeverChosen) {
   // 10 micrometres cannot be rasterised (a 30 cm square would need 9e8 nodes): every comparison with it
   // fails, nothing converges, and the choice falls back to the finest candidate that completes.

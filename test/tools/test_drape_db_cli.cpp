@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "../recognition/recognition_test_support.h"
 #include "tool_process.h"
 #include "textile_handling/db/drape_build_job.h"
+#include "textile_handling/db/drape_build_members.h"
 #include "textile_handling/db/drape_database_builder.h"
 
 using namespace textile_handling;
@@ -226,6 +228,42 @@ TEST_F(DrapeDbCli, AnAutoBuildOfASymmetricTextileSearchesMirrorSymmetricGrids) {
   EXPECT_NE(r.out.find("candidate spacings on mirror-symmetric grids: 0.06, 0.05 m"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("spacing 0.06 m"), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find("grid not symmetric"), std::string::npos) << r.out;
+}
+
+TEST_F(DrapeDbCli, AnAutoBuildWithoutConvergenceBuildsACoarserGridWithMembers) {
+  // Named points never agree (1e-9 m), silhouettes loosely: the members rule takes 6 cm plus soft_light when
+  // their work on the sample is below the 3 cm run's, and the build makes both members.
+  const std::string path = dir_ + "/auto_members.sqlite";
+  const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
+                                "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.03", "--auto-tolerance", "1e-9",
+                                "--auto-min-iou", "0.3", "--auto-samples", "1", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("a coarser one with members was taken"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("members base, soft_light: d 0.06 silhouettes agree with d 0.03"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("member soft_light:"), std::string::npos) << r.out;
+  const auto sims = squareRows(path);
+  ASSERT_EQ(sims.size(), 2u);
+  std::set<std::string> members;
+  for (const auto& s : sims) {
+    EXPECT_EQ(s.status, db::SimulationStatus::kDone);
+    EXPECT_DOUBLE_EQ(s.spacing, 0.06);
+    EXPECT_NE(s.parameters.find("automatic: members base, soft_light"), std::string::npos) << s.parameters;
+    members.insert(db::memberOfParameters(s.parameters));
+  }
+  EXPECT_EQ(members, (std::set<std::string>{"base", "soft_light"}));
+  // --auto-members none keeps the finest; an unknown member or the base is refused before the file is made.
+  const ToolRun none = runDrapeDb({"build", "--db", dir_ + "/auto_no_members.sqlite", "--textile", "square", "--hold", "0,0",
+                                   "--views", "4", "--threads", "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.03",
+                                   "--auto-tolerance", "1e-9", "--auto-min-iou", "0.3", "--auto-samples", "1",
+                                   "--auto-members", "none", "--quiet"});
+  ASSERT_EQ(none.exit_code, 0) << none.out << none.err;
+  EXPECT_NE(none.out.find("spacing 0.03 m"), std::string::npos) << none.out;
+  EXPECT_EQ(none.out.find("member soft_light"), std::string::npos) << none.out;
+  const std::string never = dir_ + "/never_members.sqlite";
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--auto-members", "velvet"}), "velvet");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto", "--auto-members", "base"}), "base member");
+  expectRefused(runDrapeDb({"build", "--db", never, "--textile", "square", "--auto-members", "soft_light"}), "needs --auto");
+  EXPECT_FALSE(std::filesystem::exists(never));
 }
 
 TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {

@@ -11,6 +11,10 @@
 //    candidate on every sampled hold point: named points (corners, grasp points) within a distance,
 //    silhouettes at the database's frame and views above a mean IoU (measureDrapeDifference(), turned about
 //    the hold axis for one-point holds).
+//  - Members instead of a finer grid (optional, member_samples): where no spacing converges on a hanging
+//    scene, the next coarser candidate than the finest plus extra database members (other materials) when its
+//    silhouettes agree with the finest's on every sample and the members' work on the samples, added to the
+//    coarser base's, stays below the finest candidate's.
 //  - Step tolerance (optional, error_tolerance_factors): at the chosen spacing, the loosest of the scene's
 //    step error tolerance times each factor whose drapes agree with the scene's own tolerance on every
 //    sample, by the same measure.
@@ -46,6 +50,15 @@ struct AutomaticChoiceOptions {
   /// on every sample is taken. Empty (the default): the samples' tolerance is kept (`drape_db build --auto
   /// --auto-step-factors 3` tries 3; docs/automatic_configuration.md).
   std::vector<Real> error_tolerance_factors;
+  /// Members a database build may add instead of the finest spacing when no spacing converges on a hanging
+  /// scene (a drape with several equilibria, where a finer grid is not nearer the drapes a robot sees):
+  /// each the samples as that member makes them (same hold points, same order as the samples; the search's
+  /// model, spacing and settings replace theirs). Tried in this order. Empty (the default): not considered.
+  struct MemberSamples {
+    std::string name;
+    std::vector<DrapeSceneSpec> scenes;
+  };
+  std::vector<MemberSamples> member_samples;
   /// Silhouettes as the database stores them.
   vision::ViewSet views;
   vision::CanonicalFrame frame;
@@ -71,12 +84,23 @@ struct AutomaticChoiceEvidence {
   bool agrees = false;
 };
 
+/// The work of one search run, deterministic so that a resumed build repeats the choice: grid nodes times
+/// (accepted steps + rejected steps + linear-solver iterations).
+Real searchRunWork(Index nodes, long steps, long rejected_steps, long solver_iterations);
+
 struct AutomaticChoice {
   ClothModelSpec model;            ///< the chosen model with the settling options of a build
   std::string model_reason;        ///< why this model
   Real spacing = 0;                ///< [m]
   SimulationSettings settings;     ///< integrator, policy and steps (error tolerance) as chosen
   bool converged = false;          ///< false: no candidate agreed with every finer one; the finest that completes was taken
+  /// Members to build besides the base (names of options.member_samples), empty unless the members rule
+  /// took a coarser spacing; `members_reason` gives the silhouettes and work it was decided on.
+  std::vector<std::string> members;
+  std::string members_reason;
+  /// The rule's work (searchRunWork) summed over the samples: the finest candidate's, and the coarser base's
+  /// plus the taken members' (0 when the rule did not get that far).
+  Real work_finest = 0, work_with_members = 0;
   std::vector<AutomaticChoiceEvidence> evidence;
   Real search_wall_s = 0;          ///< wall time of the whole search [s]
   /// Multi-line report: the choice, the reason, the tolerances and one line per comparison.
@@ -91,9 +115,15 @@ struct AutomaticChoice {
 /// as disagreement, and a particle model that diverges switches the search to Choi-Ko. If no candidate
 /// agrees with every finer one, the finest candidate that completes on every sample is taken. Then, with
 /// options.error_tolerance_factors, the step tolerance is searched at that spacing (evidence rows with
-/// error_tolerance != reference_error_tolerance); the samples' own is kept when no candidate agrees. Throws
-/// InvalidInputError for no samples, bad options, or no candidate that completes on every sample (the
-/// message lists each failing run).
+/// error_tolerance != reference_error_tolerance); the samples' own is kept when no candidate agrees. Where
+/// nothing converged on a hanging scene and options.member_samples is not empty, the members rule runs
+/// first: the next coarser candidate than the finest that completes is taken, with the listed members in
+/// order as long as (1) every sample completes there and its mean silhouette IoU against the finest is at
+/// least min_mean_iou (its named points may lie in another equilibrium), (2) every sample of each taken
+/// member completes there, and (3) the work (searchRunWork) of the coarser base and the taken members on
+/// the samples stays below the finest's; with no member taken the finest stays. Throws InvalidInputError
+/// for no samples, bad options, member samples that do not match the samples, or no candidate that
+/// completes on every sample (the message lists each failing run).
 AutomaticChoice chooseConfiguration(const std::vector<DrapeSceneSpec>& samples, const AutomaticChoiceOptions& options);
 
 /// `spacings` sorted coarse to fine with near-equal values (within 1e-9 relative) kept once, the order in
