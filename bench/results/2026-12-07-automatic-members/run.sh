@@ -34,6 +34,7 @@ recognise() {  # SEED DATABASE: the set's renders recognised against $WORK/DATAB
   $D/foreign_drape_bench --database "$WORK/$v.sqlite" --out "$dir" --holds 4 --views 3 --seed $seed \
     --variants $FRESH_VARIANTS --workers 1 --max-time 20 > "$OUT/recognition_seed${seed}_$v.log" 2>&1
   cp "$dir/foreign_drapes.csv" "$OUT/recognition_seed${seed}_$v.csv"
+  cp "$dir/foreign_corners.csv" "$OUT/recognition_seed${seed}_${v}_corners.csv"
 }
 recognise 61 d067 & recognise 61 auto & wait
 recognise 71 d067 & recognise 71 auto & wait
@@ -44,6 +45,16 @@ for v in d067 auto; do
   (cat $OUT/recognition_seed61_$v.csv; tail -n +2 $OUT/recognition_seed71_$v.csv) > "$WORK/new_fresh_$v.csv"
 done
 python3 $PREV/summarise.py "$WORK/new_fresh_d067.csv" auto="$WORK/new_fresh_auto.csv" > $OUT/summary_new_fresh_pooled.csv
+# Results with a corner reported safe, paired (outside the criterion; safe_corners.py).
+for seed in 61 71 41; do
+  python3 $OUT/safe_corners.py $OUT/recognition_seed${seed}_d067_corners.csv auto=$OUT/recognition_seed${seed}_auto_corners.csv \
+    > $OUT/safe_corners_seed$seed.csv
+done
+for v in d067 auto; do
+  (cat $OUT/recognition_seed61_${v}_corners.csv; tail -n +2 $OUT/recognition_seed71_${v}_corners.csv) > "$WORK/new_fresh_${v}_corners.csv"
+done
+python3 $OUT/safe_corners.py "$WORK/new_fresh_d067_corners.csv" auto="$WORK/new_fresh_auto_corners.csv" \
+  > $OUT/safe_corners_new_fresh_pooled.csv
 # The identity check: seed 41 again, against the rows of the previous directory.
 {
   echo "seed 41, d = 2/3 cm against the previous directory's d = 2/3 cm: $(python3 $OUT/same_rows.py $OUT/recognition_seed41_d067.csv $PREV/recognition_seed41_d067.csv)"
