@@ -60,3 +60,5 @@ python3 $OUT/safe_corners.py "$WORK/new_fresh_d067_corners.csv" auto="$WORK/new_
   echo "seed 41, d = 2/3 cm against the previous directory's d = 2/3 cm: $(python3 $OUT/same_rows.py $OUT/recognition_seed41_d067.csv $PREV/recognition_seed41_d067.csv)"
   echo "seed 41, automatic against the previous directory's d = 1 cm + soft_light: $(python3 $OUT/same_rows.py $OUT/recognition_seed41_auto.csv $PREV/recognition_seed41_d1_soft.csv)"
 } > $OUT/identity_seed41.txt
+python3 $OUT/safe_by_evidence.py d067=$OUT/recognition_seed61_d067_corners.csv,$OUT/recognition_seed71_d067_corners.csv \
+  auto=$OUT/recognition_seed61_auto_corners.csv,$OUT/recognition_seed71_auto_corners.csv > $OUT/safe_by_evidence_new_fresh_pooled.csv
