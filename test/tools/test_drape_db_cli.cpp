@@ -32,6 +32,17 @@ ToolRun runDrapeDb(const std::vector<std::string>& args) {
   return r;
 }
 
+// `drape_db build --auto` of the square held at its corner into `db` (4 views, one thread, no mirror), with
+// the search's candidate spacings, named-point tolerance and IoU bound, plus `extra` arguments.
+ToolRun autoBuildOfSquareCorner(const std::string& db, const std::string& spacings, const std::string& tolerance,
+                                const std::string& min_iou, const std::vector<std::string>& extra = {}) {
+  std::vector<std::string> args = {"build", "--db", db, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads", "1",
+                                   "--no-symmetry", "--auto", "--auto-spacings", spacings, "--auto-tolerance", tolerance,
+                                   "--auto-min-iou", min_iou, "--auto-samples", "1", "--quiet"};
+  args.insert(args.end(), extra.begin(), extra.end());
+  return runDrapeDb(args);
+}
+
 class DrapeDbCli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
@@ -234,9 +245,7 @@ TEST_F(DrapeDbCli, AnAutoBuildWithoutConvergenceBuildsACoarserGridWithMembers) {
   // Named points never agree (1e-9 m), silhouettes loosely: the members rule takes 6 cm plus soft_light when
   // their work on the sample is below the 3 cm run's, and the build makes both members.
   const std::string path = dir_ + "/auto_members.sqlite";
-  const ToolRun r = runDrapeDb({"build", "--db", path, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
-                                "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.03", "--auto-tolerance", "1e-9",
-                                "--auto-min-iou", "0.3", "--auto-samples", "1", "--quiet"});
+  const ToolRun r = autoBuildOfSquareCorner(path, "0.06,0.03", "1e-9", "0.3");
   ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find("a coarser one with members was taken"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("members base, soft_light: d 0.06 silhouettes agree with d 0.03"), std::string::npos) << r.out;
@@ -252,10 +261,8 @@ TEST_F(DrapeDbCli, AnAutoBuildWithoutConvergenceBuildsACoarserGridWithMembers) {
   }
   EXPECT_EQ(members, (std::set<std::string>{"base", "soft_light"}));
   // --auto-members none keeps the finest; an unknown member or the base is refused before the file is made.
-  const ToolRun none = runDrapeDb({"build", "--db", dir_ + "/auto_no_members.sqlite", "--textile", "square", "--hold", "0,0",
-                                   "--views", "4", "--threads", "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.03",
-                                   "--auto-tolerance", "1e-9", "--auto-min-iou", "0.3", "--auto-samples", "1",
-                                   "--auto-members", "none", "--quiet"});
+  const ToolRun none =
+      autoBuildOfSquareCorner(dir_ + "/auto_no_members.sqlite", "0.06,0.03", "1e-9", "0.3", {"--auto-members", "none"});
   ASSERT_EQ(none.exit_code, 0) << none.out << none.err;
   EXPECT_NE(none.out.find("spacing 0.03 m"), std::string::npos) << none.out;
   EXPECT_EQ(none.out.find("member soft_light"), std::string::npos) << none.out;
@@ -289,9 +296,7 @@ TEST_F(DrapeDbCli, AnAutoBuildStoresItsChoiceAndEvidenceWithTheRows) {
   }
   // Without --auto-step-factors (or with none) the builder's step tolerance is kept and no other is tried.
   const std::string kept = dir_ + "/auto_kept.sqlite";
-  const ToolRun r2 = runDrapeDb({"build", "--db", kept, "--textile", "square", "--hold", "0,0", "--views", "4", "--threads",
-                                 "1", "--no-symmetry", "--auto", "--auto-spacings", "0.06,0.05", "--auto-tolerance", "10",
-                                 "--auto-min-iou", "0", "--auto-samples", "1", "--quiet"});
+  const ToolRun r2 = autoBuildOfSquareCorner(kept, "0.06,0.05", "10", "0");
   ASSERT_EQ(r2.exit_code, 0) << r2.out << r2.err;
   EXPECT_NE(r2.out.find("(step error tolerance 0.0001 m)"), std::string::npos) << r2.out;
   EXPECT_EQ(r2.out.find("step tolerance 0."), std::string::npos) << r2.out;
