@@ -274,6 +274,7 @@ std::size_t coverWithMembers(const std::vector<DrapeSceneSpec>& samples, const A
     finest_work += search.run(i, finest).work;
     work += search.run(i, coarser).work;
   }
+  choice.work_finest = finest_work;
   std::ostringstream why;
   why << "d " << number(d[coarser]) << " silhouettes agree with d " << number(d[finest]) << " on every sample (IoU >= "
       << number(lowest_iou) << "); work on the samples: d " << number(d[finest]) << " " << number(finest_work) << ", d "
@@ -282,10 +283,10 @@ std::size_t coverWithMembers(const std::vector<DrapeSceneSpec>& samples, const A
   for (const AutomaticChoiceOptions::MemberSamples& m : options.member_samples) {
     Real member_work = 0;
     std::string failure;
-    for (const DrapeSceneSpec& scene : m.scenes) {
-      const SearchRun r = search.simulateScene(scene, d[coarser], choice.settings.error_tolerance, m.name);
+    for (std::size_t i = 0; i < m.scenes.size() && failure.empty(); ++i) {  // a failing sample settles it
+      const SearchRun r = search.simulateScene(m.scenes[i], d[coarser], choice.settings.error_tolerance, m.name);
       member_work += r.work;
-      if (!r.usable && failure.empty()) failure = r.status;
+      if (!r.usable) failure = r.status;
     }
     if (!failure.empty()) {
       why << ", " << m.name << " " << failure << " (stop)";
@@ -299,13 +300,12 @@ std::size_t coverWithMembers(const std::vector<DrapeSceneSpec>& samples, const A
     taken.push_back(m.name);
     why << ", + " << m.name << " " << number(member_work);
   }
+  choice.work_with_members = work;
   if (taken.empty()) {
     choice.members_reason = "no members: " + why.str();
     return finest;
   }
   choice.members = taken;
-  choice.work_finest = finest_work;
-  choice.work_with_members = work;
   choice.members_reason = why.str() + " (node-iterations)";
   choice.spacing = d[coarser];
   return coarser;

@@ -332,11 +332,10 @@ void chooseAutomatically(const Args& a, const TextileSymmetry& sym, DrapeBuildCo
   }
   for (const DrapeMemberSpec& m : offered) {
     if (m.name == "base") throw UsageError("--auto-members: the base member is always built; list extra members only");
-    bool built_anyway = false;
-    for (const DrapeMemberSpec& b : members) built_anyway |= b.name == m.name;
-    if (built_anyway) continue;
+    if (std::any_of(members.begin(), members.end(), [&](const DrapeMemberSpec& b) { return b.name == m.name; })) continue;
+    const DrapeBuildConfig member_config = memberBuildConfig(c, m);
     AutomaticChoiceOptions::MemberSamples ms{m.name, {}};
-    for (const Vec2& p : sample_points) ms.scenes.push_back(DrapeDatabaseBuilder::sceneSpec(memberBuildConfig(c, m), p));
+    for (const Vec2& p : sample_points) ms.scenes.push_back(DrapeDatabaseBuilder::sceneSpec(member_config, p));
     o.member_samples.push_back(ms);
   }
   if (!a.has("--quiet")) o.on_progress = [](const std::string& line) { std::cerr << "auto: " << line << "\n"; };

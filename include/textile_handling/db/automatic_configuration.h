@@ -99,7 +99,7 @@ struct AutomaticChoice {
   std::vector<std::string> members;
   std::string members_reason;
   /// The rule's work (searchRunWork) summed over the samples: the finest candidate's, and the coarser base's
-  /// plus the taken members' (0 when the rule did not get that far).
+  /// plus the taken members' (both 0 when the rule stopped before comparing work: not asked, or silhouettes).
   Real work_finest = 0, work_with_members = 0;
   std::vector<AutomaticChoiceEvidence> evidence;
   Real search_wall_s = 0;          ///< wall time of the whole search [s]
