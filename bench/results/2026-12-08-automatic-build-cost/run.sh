@@ -25,3 +25,7 @@ for pair in 1 2 3; do
   wait
 done
 python3 "$OUT/ratios.py" "$OUT/times.csv" > "$OUT/ratios.txt"
+# The stored rest shapes of each build, as a digest (equal digests: the same shapes bit for bit). The last two lines
+# of shapes_digest.txt are the databases of ../2026-12-07-automatic-members (its $WORK, /tmp/am), added by hand with
+# the same script.
+python3 "$OUT/shapes_digest.py" "$WORK"/auto_{1,2,3}.sqlite "$WORK"/d067_{1,2,3}.sqlite > "$OUT/shapes_digest.txt"
