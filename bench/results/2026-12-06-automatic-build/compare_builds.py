@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Compares two drape databases of the same textile hold point by hold point (simulated rows only):
 whether the stored rest shapes are byte-identical, the largest particle distance where they are not,
-whether their silhouette views are byte-identical, and the simulation wall times. Usage: compare_builds.py REFERENCE.sqlite OTHER.sqlite > compare.csv"""
+whether their silhouette views are byte-identical, and the simulation wall times. A database with members has
+several rows per hold point: the k-th row (by id) of a hold point is compared with the other database's k-th, and
+its key gets "#k" for k > 0. Usage: compare_builds.py REFERENCE.sqlite OTHER.sqlite > compare.csv"""
 import sqlite3
 import struct
 import sys
@@ -9,13 +11,15 @@ import sys
 
 def rows(path):
     con = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
-    out = {}
+    out, seen = {}, {}
     for sid, key, spacing, wall, blob in con.execute(
             "SELECT id, hold_key, spacing, wall_time_s, positions FROM simulations "
-            "WHERE source = 'identity' AND status = 'done'").fetchall():
+            "WHERE source = 'identity' AND status = 'done' ORDER BY id").fetchall():
         masks = b"".join(bytes(m) for (m,) in con.execute(
             "SELECT mask FROM views WHERE simulation_id = ? ORDER BY view_angle_deg", (sid,)))
-        out[key] = (spacing, wall, bytes(blob), masks)
+        k = seen.get(key, 0)
+        seen[key] = k + 1
+        out[key if k == 0 else f"{key}#{k}"] = (spacing, wall, bytes(blob), masks)
     return out
 
 

@@ -25,7 +25,11 @@ for pair in 1 2 3; do
   wait
 done
 python3 "$OUT/ratios.py" "$OUT/times.csv" > "$OUT/ratios.txt"
-# The stored rest shapes of each build, as a digest (equal digests: the same shapes bit for bit). The last two lines
-# of shapes_digest.txt are the databases of ../2026-12-07-automatic-members (its $WORK, /tmp/am), added by hand with
-# the same script.
-python3 "$OUT/shapes_digest.py" "$WORK"/auto_{1,2,3}.sqlite "$WORK"/d067_{1,2,3}.sqlite > "$OUT/shapes_digest.txt"
+# Each build's stored rest shapes and views against pair 1's of the same kind, and against the database of that kind
+# recognised in ../2026-12-07-automatic-members (its $WORK, $AM_WORK, default /tmp/am).
+AM_WORK=${AM_WORK:-/tmp/am}
+COMPARE=bench/results/2026-12-06-automatic-build/compare_builds.py
+for v in auto d067; do
+  for p in 2 3; do python3 $COMPARE "$WORK/${v}_1.sqlite" "$WORK/${v}_$p.sqlite" > "$OUT/compare_${v}_1_$p.csv"; done
+  python3 $COMPARE "$WORK/${v}_1.sqlite" "$AM_WORK/$v.sqlite" > "$OUT/compare_${v}_1_recognised.csv"
+done

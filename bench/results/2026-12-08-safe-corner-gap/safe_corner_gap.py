@@ -24,6 +24,10 @@ def load(prefix, seeds, suffix):
     return rows
 
 
+def two_images(corners):
+    return [c for c in corners if c["views"] == "2"]
+
+
 def main():
     ref, other, seeds = sys.argv[1], sys.argv[2], sys.argv[3:]
     ra, rb = load(ref, seeds, ""), load(other, seeds, "")
@@ -31,12 +35,8 @@ def main():
     if len(ra) != len(rb) or len(ca) != 4 * len(ra) or len(cb) != 4 * len(rb):
         sys.exit("rows do not pair: need the same recognitions, four corners each")
     out = []
-
-    def two(cs):
-        return [c for c in cs if c["views"] == "2"]
-
     for cs, tag in ((ca, "reference"), (cb, "other")):
-        loc = [c for c in two(cs) if c["evidence"] in DATA]
+        loc = [c for c in two_images(cs) if c["evidence"] in DATA]
         out.append((tag, "located_corners", len(loc)))
         out.append((tag, "located_within_3cm", sum(float(c["error_m"]) < 0.03 for c in loc)))
         out.append((tag, "located_safe", sum(c["safe"] == "1" for c in loc)))
